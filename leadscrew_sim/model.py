@@ -1,0 +1,294 @@
+"""LeadScrewModel: parameters + state + the fixed-step kernel (ROS-free).
+
+Sign convention (physics.md section 3): theta follows the right-hand rule
+about +x; the motor torque and screw angle are reported in that sense. A
+positive torque moves the nut toward -x for a right-hand thread and toward +x
+for a left-hand one.
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+from . import kernel as K
+from .params import ParameterError, ScrewParams
+
+#: Largest number of substeps one step may take before the set is refused.
+MAX_SUBSTEPS_PER_STEP = 200000
+
+CONTACT_NAMES = {1: 'leading', -1: 'trailing', 0: 'backlash'}
+
+
+@dataclasses.dataclass(frozen=True)
+class StepOutput:
+    """Everything one step reports (SI; angles and torques in the theta sense)."""
+
+    time: float                 #: simulated time [s]
+    motor_angle: float          #: motor rotor angle [rad]
+    motor_velocity: float       #: [rad/s]
+    screw_angle: float          #: theta [rad]
+    screw_velocity: float       #: [rad/s]
+    nut_position: float         #: x of nut A [m]
+    nut_velocity: float         #: [m/s]
+    nut_b_position: float       #: x of half-nut B [m] (= x when no anti-backlash nut)
+    motor_torque: float         #: applied (saturated, lagged) motor torque [N m]
+    normal_leading: float       #: leading flank normal force of nut A [N]
+    normal_trailing: float      #: trailing flank normal force of nut A [N]
+    friction_force: float       #: thread friction along the flank on nut A [N]
+    sliding_velocity: float     #: v_s of nut A [m/s]
+    contact: int                #: 1 leading, -1 trailing, 0 in backlash
+    stuck: bool                 #: thread of nut A sticking (true stiction)
+    axial_force: float          #: axial thread force of the screw on the nut(s) [N]
+    thread_torque: float        #: thread reaction torque on the screw [N m]
+    substeps: int               #: substeps taken in this step
+
+    @property
+    def contact_name(self):
+        """'leading', 'trailing' or 'backlash'."""
+        return CONTACT_NAMES[self.contact]
+
+
+def pack_params(p):
+    """Flatten ScrewParams into the kernel's parameter vector."""
+    lam = p.lead_angle
+    tf = p.thread_factor
+    v = np.zeros(K.NP)
+    v[K.P_RT] = p.r_m * math.tan(lam)
+    v[K.P_RC] = p.r_m * math.cos(lam)
+    v[K.P_SL] = math.sin(lam)
+    v[K.P_CL] = math.cos(lam)
+    v[K.P_MUS] = p.mu_s * tf
+    v[K.P_MUK] = p.mu_k * tf
+    v[K.P_VST] = p.stribeck_velocity
+    v[K.P_DST] = p.stribeck_exponent
+    v[K.P_MUV] = p.mu_viscous * tf
+    v[K.P_B] = p.backlash
+    v[K.P_K] = p.contact_stiffness
+    v[K.P_C] = p.contact_damping
+    v[K.P_JM] = p.motor_inertia
+    v[K.P_JS] = p.screw_inertia
+    v[K.P_KC] = p.coupling_stiffness
+    v[K.P_CC] = p.coupling_damping
+    v[K.P_RIGID] = 1.0 if p.coupling_stiffness == 0.0 else 0.0
+    v[K.P_CS] = p.bearing_viscous
+    v[K.P_TS0] = p.bearing_coulomb
+    v[K.P_MUC] = p.collar_mu
+    v[K.P_RCOL] = p.collar_radius
+    v[K.P_MA] = p.nut_mass + p.payload_mass
+    v[K.P_MB] = p.second_nut_mass
+    v[K.P_CX] = p.guide_viscous
+    v[K.P_FX0] = p.guide_coulomb
+    v[K.P_GS] = p.gravity * math.sin(p.inclination)
+    v[K.P_KES] = p.end_stop_stiffness
+    v[K.P_CES] = p.end_stop_damping
+    v[K.P_XMIN] = p.stroke_min
+    v[K.P_XMAX] = p.stroke_max
+    v[K.P_TMAX] = p.max_torque
+    v[K.P_TAU] = p.torque_lag
+    v[K.P_AB] = 1.0 if p.anti_backlash else 0.0
+    v[K.P_FP] = p.preload_force
+    v[K.P_KP] = p.preload_stiffness
+    v[K.P_FEXT] = p.external_force
+    return v
+
+
+def _mass_matrices(p):
+    """Diagonal inertia and the linearised stiffness and damping matrices."""
+    rigid = p.coupling_stiffness == 0.0
+    rt = p.r_m * math.tan(p.lead_angle)
+    m = np.array([p.motor_inertia, p.screw_inertia, p.nut_mass + p.payload_mass,
+                  p.second_nut_mass])
+    kmat = np.zeros((4, 4))
+    cmat = np.zeros((4, 4))
+
+    def add(g, kk, cc):
+        g = np.asarray(g, float)
+        kmat[:] += kk * np.outer(g, g)
+        cmat[:] += cc * np.outer(g, g)
+
+    add([1, -1, 0, 0], p.coupling_stiffness, p.coupling_damping)
+    add([0, -rt, 1, 0], p.contact_stiffness, p.contact_damping)
+    add([0, 0, 1, 0], p.end_stop_stiffness, p.end_stop_damping + p.guide_viscous)
+    add([0, 1, 0, 0], 0.0, p.bearing_viscous)
+    keep = [0, 1, 2]
+    if p.anti_backlash:
+        add([0, -rt, 0, 1], p.contact_stiffness, p.contact_damping)
+        add([0, 0, -1, 1], p.preload_stiffness, 0.0)
+        keep.append(3)
+    if rigid:
+        m[1] += m[0]
+        keep.remove(0)
+    idx = np.array(keep)
+    return m[idx], kmat[np.ix_(idx, idx)], cmat[np.ix_(idx, idx)]
+
+
+def stiffest_mode(p):
+    """(omega_max [rad/s], damping rate [1/s]) of the linearised chain."""
+    m, kmat, cmat = _mass_matrices(p)
+    s = 1.0 / np.sqrt(m)
+    w2 = np.linalg.eigvalsh(kmat * np.outer(s, s)).max()
+    rate = np.linalg.eigvalsh(cmat * np.outer(s, s)).max()
+    return math.sqrt(max(w2, 0.0)), max(rate, 0.0)
+
+
+def auto_substep(p):
+    """Largest stable substep [s]: 0.2 / omega_max, and 0.2 / damping rate."""
+    omega, rate = stiffest_mode(p)
+    h = min(0.2 / omega if omega > 0 else math.inf, 0.2 / rate if rate > 0 else math.inf)
+    if p.substep > 0.0:
+        h = min(h, p.substep)
+    return h if math.isfinite(h) else 1e-3
+
+
+class LeadScrewModel:
+    """A lead screw axis: validated parameters, a state vector and step().
+
+    The state is a plain float64 array (layout in ``kernel``); ``step``
+    advances it by exactly ``dt`` in equal substeps.
+    """
+
+    def __init__(self, params=None, dt=1e-3):
+        """Create the model at its initial state for a fixed step dt [s]."""
+        self.params = params if params is not None else ScrewParams()
+        self._P = pack_params(self.params)
+        self.dt = float(dt)
+        self.substep = auto_substep(self.params)
+        self.nsub = self.substeps_for(self.dt)
+        self.state = np.zeros(K.NS)
+        self.out = np.zeros(K.NO)
+        self.fault = None
+        self.reset()
+
+    def substeps_for(self, dt):
+        """Number of equal substeps used for a step of dt [s]."""
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ParameterError('dt', f'{dt!r} s must be a positive finite step')
+        n = max(1, math.ceil(dt / self.substep - 1e-9))
+        if n > MAX_SUBSTEPS_PER_STEP:
+            raise ParameterError('contact_stiffness', f'the stiffest mode needs a substep of '
+                                 f'{self.substep:.3g} s, i.e. {n} substeps per {dt} s step '
+                                 f'(limit {MAX_SUBSTEPS_PER_STEP}); soften the contact or '
+                                 'raise the masses')
+        return n
+
+    def reset(self):
+        """Restore the initial state (static seating on the loaded flank)."""
+        p = self.params
+        s = self.state
+        s[:] = 0.0
+        rt = self._P[K.P_RT]
+        hb = 0.5 * p.backlash
+        x0 = p.initial_position
+        if p.anti_backlash:
+            delta_a = -hb
+        else:
+            f0 = p.external_force - (p.nut_mass + p.payload_mass) * self._P[K.P_GS]
+            delta_a = 0.0 if f0 == 0.0 else (
+                (-hb + f0 / p.contact_stiffness) if f0 < 0 else (hb + f0 / p.contact_stiffness))
+        q0 = (x0 - delta_a) / rt
+        s[K.S_Q] = s[K.S_QM] = q0
+        s[K.S_XA] = x0
+        s[K.S_XB] = x0 + p.backlash if p.anti_backlash else x0
+        self.fault = None
+        self.out[:] = 0.0
+        self._e0 = self._stored_energy()
+        return self
+
+    # Stepping ---------------------------------------------------------------
+    def step(self, torque, dt=None, external_force=0.0):
+        """Advance by dt [s] (default: the model's dt) under a motor torque [N m].
+
+        torque follows the theta sense; external_force [N] acts on the nut
+        along +x in addition to the parameter. Non-finite inputs raise
+        ValueError and never reach the integrator. Returns a StepOutput.
+        """
+        self.advance(torque, dt, external_force)
+        return self.output()
+
+    def advance(self, torque, dt=None, external_force=0.0):
+        """Like step() but returns nothing (the fast path)."""
+        if not (math.isfinite(torque) and math.isfinite(external_force)):
+            raise ValueError(f'non-finite input: torque={torque!r} N m, '
+                             f'external_force={external_force!r} N')
+        if self.fault:
+            raise FloatingPointError(self.fault)
+        if dt is None or dt == self.dt:
+            dt, n = self.dt, self.nsub
+        else:
+            n = self.substeps_for(dt)
+        backup = self.state.copy()
+        rc = K.step(self._P, self.state, self.out, self._P_hand() * torque,
+                    float(external_force), float(dt), n)
+        if rc != 0:
+            self.state[:] = backup
+            self.fault = (f'non-finite state at t={backup[K.S_T]:.6f} s '
+                          f'(torque {torque} N m); integration stopped')
+            raise FloatingPointError(self.fault)
+
+    def _P_hand(self):
+        return self.params.hand_sign
+
+    # Views ------------------------------------------------------------------
+    @property
+    def time(self):
+        """Simulated time [s]."""
+        return self.state[K.S_T]
+
+    def output(self):
+        """The StepOutput of the current state and last step."""
+        s, o, hs = self.state, self.out, self.params.hand_sign
+        return StepOutput(
+            time=s[K.S_T], motor_angle=hs * s[K.S_QM], motor_velocity=hs * s[K.S_WM],
+            screw_angle=hs * s[K.S_Q], screw_velocity=hs * s[K.S_DQ],
+            nut_position=s[K.S_XA], nut_velocity=s[K.S_VA], nut_b_position=s[K.S_XB],
+            motor_torque=hs * o[K.O_TE], normal_leading=o[K.O_NLA],
+            normal_trailing=o[K.O_NUA], friction_force=o[K.O_FFA],
+            sliding_velocity=o[K.O_VSA], contact=int(o[K.O_CONTA]),
+            stuck=bool(o[K.O_STICKA] == 1.0), axial_force=o[K.O_FAX],
+            thread_torque=hs * o[K.O_TTH], substeps=int(o[K.O_NSUB]))
+
+    def _stored_energy(self):
+        """(kinetic, potential, spring) energy of the current state [J]."""
+        p, s, P = self.params, self.state, self._P
+        rigid = P[K.P_RIGID] > 0.5
+        ma, mb = P[K.P_MA], P[K.P_MB]
+        if rigid:
+            kin = 0.5 * (p.motor_inertia + p.screw_inertia) * s[K.S_DQ] ** 2
+        else:
+            kin = 0.5 * p.motor_inertia * s[K.S_WM] ** 2 + 0.5 * p.screw_inertia * s[K.S_DQ] ** 2
+        kin += 0.5 * ma * s[K.S_VA] ** 2
+        pot = P[K.P_GS] * ma * s[K.S_XA]
+        rt, hb, k = P[K.P_RT], 0.5 * p.backlash, p.contact_stiffness
+        spring = 0.0
+        bodies = [s[K.S_XA]]
+        if p.anti_backlash:
+            kin += 0.5 * mb * s[K.S_VB] ** 2
+            pot += P[K.P_GS] * mb * s[K.S_XB]
+            bodies.append(s[K.S_XB])
+            stretch = p.backlash + p.preload_force / p.preload_stiffness - (s[K.S_XB] - s[K.S_XA])
+            spring += 0.5 * p.preload_stiffness * stretch ** 2
+        for x in bodies:
+            d = x - rt * s[K.S_Q]
+            for e in (-d - hb, d - hb):
+                if e > 0:
+                    spring += 0.5 * k * e * e
+        if not rigid:
+            spring += 0.5 * p.coupling_stiffness * (s[K.S_QM] - s[K.S_Q]) ** 2
+        for pen in (p.stroke_min - s[K.S_XA], s[K.S_XA] - p.stroke_max):
+            if pen > 0:
+                spring += 0.5 * p.end_stop_stiffness * pen * pen
+        return kin, pot, spring
+
+    def energy(self):
+        """Energy bookkeeping since reset [J], with the balance residual."""
+        kin, pot, spring = self._stored_energy()
+        k0, p0, s0 = self._e0
+        s = self.state
+        terms = dict(
+            input_work=s[K.S_WIN], external_work=s[K.S_WEXT],
+            kinetic=kin - k0, potential=pot - p0, spring=spring - s0,
+            friction_dissipation=s[K.S_EFRIC], damping_dissipation=s[K.S_EDAMP])
+        terms['residual'] = (terms['input_work'] + terms['external_work'] - terms['kinetic']
+                             - terms['potential'] - terms['spring']
+                             - terms['friction_dissipation'] - terms['damping_dissipation'])
+        return terms

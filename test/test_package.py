@@ -1,0 +1,84 @@
+"""The package as colcon builds it: install layout, package.xml schema."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCHEMA = REPO.parent / 'shared' / 'schemas' / 'package_format3.xsd'
+
+
+@pytest.fixture(scope='module')
+def install_prefix(tmp_path_factory):
+    """Build and install the package the way colcon's ament_python task does."""
+    tmp = tmp_path_factory.mktemp('colcon')
+    src = tmp / 'src'
+    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(
+        '.venv', '.git', 'build', 'install', 'runs', '.ros_log', '*.egg-info',
+        '__pycache__', '.hypothesis'))
+    prefix = tmp / 'install'
+    cmd = [sys.executable, 'setup.py',
+           'egg_info', '--egg-base', str(tmp / 'build'),
+           'build', '--build-base', str(tmp / 'build' / 'build'),
+           'install', '--prefix', str(prefix), '--record', str(tmp / 'record.txt'),
+           '--single-version-externally-managed']
+    (tmp / 'build').mkdir()
+    res = subprocess.run(cmd, cwd=src, capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+    return prefix
+
+
+def test_ament_index_marker(install_prefix):
+    marker = install_prefix / 'share/ament_index/resource_index/packages/leadscrew_sim'
+    assert marker.is_file()
+
+
+def test_package_xml_installed(install_prefix):
+    assert (install_prefix / 'share/leadscrew_sim/package.xml').is_file()
+
+
+@pytest.mark.parametrize('exe', ['leadscrew_sim_node', 'leadscrew_sim'])
+def test_executables_in_lib(install_prefix, exe):
+    path = install_prefix / 'lib/leadscrew_sim' / exe
+    assert path.is_file(), sorted(p.name for p in (install_prefix / 'lib').iterdir())
+    assert os.access(path, os.X_OK)
+
+
+def test_presets_installed(install_prefix):
+    installed = sorted(p.name for p in (install_prefix / 'share/leadscrew_sim/config').glob('*.yaml'))
+    source = sorted(p.name for p in (REPO / 'config').glob('*.yaml'))
+    assert source and installed == source
+
+
+def test_ament_index_finds_package(install_prefix):
+    code = ('from ament_index_python.packages import get_package_share_directory as g;'
+            'print(g("leadscrew_sim"))')
+    env = dict(os.environ, AMENT_PREFIX_PATH=f'{install_prefix}:{sys.prefix}')
+    out = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True,
+                         text=True, check=True).stdout.strip()
+    assert Path(out) == install_prefix / 'share/leadscrew_sim'
+
+
+def test_package_xml_validates_against_format3_schema():
+    if not SCHEMA.is_file():
+        pytest.skip('../shared/schemas is absent; schema check needs it')
+    from lxml import etree
+    schema = etree.XMLSchema(etree.parse(str(SCHEMA)))
+    doc = etree.parse(str(REPO / 'package.xml'))
+    assert schema.validate(doc), str(schema.error_log)
+
+
+def test_package_xml_parses_like_colcon():
+    from catkin_pkg.package import parse_package
+    pkg = parse_package(str(REPO / 'package.xml'))
+    pkg.validate()
+    assert pkg.name == 'leadscrew_sim'
+    assert pkg.package_format == 3
+    assert pkg.get_build_type() == 'ament_python'
+    deps = {d.name for d in pkg.exec_depends}
+    for d in ('rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs',
+              'rosgraph_msgs', 'std_srvs', 'python3-numpy', 'python3-scipy'):
+        assert d in deps
