@@ -1,4 +1,5 @@
-"""leadscrew_sim: a lead screw axis simulator (physics core, ROS 2 node, MCAP tools).
+"""
+leadscrew_sim: a lead screw axis simulator (physics core, ROS 2 node, MCAP tools).
 
 The physics core (``geometry``, ``params``, ``kernel``, ``model``) imports
 nothing from ROS and can be used as a plain Python library::

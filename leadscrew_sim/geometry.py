@@ -1,4 +1,5 @@
-"""Thread geometry and quasi-static closed forms (physics.md sections 1-2).
+"""
+Thread geometry and quasi-static closed forms (physics.md sections 1-2).
 
 All lengths in m, angles in rad, torques in N m, forces in N.
 """
@@ -45,7 +46,8 @@ def raise_torque(load, r_m, mu_app, lam, collar_mu=0.0, collar_radius=0.0):
 
 
 def lower_torque(load, r_m, mu_app, lam, collar_mu=0.0, collar_radius=0.0):
-    """Torque to drive with an axial load W [N m]; <= 0 means it back-drives.
+    """
+    Torque to drive with an axial load W [N m]; <= 0 means it back-drives.
 
     The collar term is added as in Shigley eq. 8-6; it only applies while the
     thread term is positive (the collar then opposes the driven rotation).
@@ -55,7 +57,7 @@ def lower_torque(load, r_m, mu_app, lam, collar_mu=0.0, collar_radius=0.0):
 
 
 def efficiency(mu_app, lam):
-    """Forward efficiency (torque -> force), dimensionless."""
+    """Return eta, the forward efficiency from torque to force."""
     t = math.tan(lam)
     return t * (1.0 - mu_app * t) / (t + mu_app)
 

@@ -1,4 +1,5 @@
-"""Fixed-step integration kernel of the lead screw model (ROS-free, numba-compiled).
+"""
+Fixed-step integration kernel of the lead screw model (ROS-free, numba-compiled).
 
 Generalised coordinates, all in the "q sense" of physics.md section 3
 (q = h theta, so x = r_m tan(lambda) q for every hand):
@@ -157,8 +158,9 @@ def _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial):
 
 
 @njit(cache=True)
-def step(P, S, O, t_cmd, f_in, dt, nsub):
-    """Advance the state S by exactly dt in nsub equal substeps.
+def step(P, S, out, t_cmd, f_in, dt, nsub):
+    """
+    Advance the state S by exactly dt in nsub equal substeps.
 
     t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
     force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
@@ -396,22 +398,22 @@ def step(P, S, O, t_cmd, f_in, dt, nsub):
             if not math.isfinite(S[i]):
                 return 1
     # outputs of the last substep
-    O[O_NLA] = pla / cl
-    O[O_NUA] = pua / cl
-    O[O_NLB] = plb / cl
-    O[O_NUB] = pub / cl
-    O[O_FFA] = ffa
-    O[O_FFB] = ffb
-    O[O_VSA] = rc * S[S_DQ] + sl * S[S_VA]
-    O[O_VSB] = rc * S[S_DQ] + sl * S[S_VB] if ab else 0.0
-    O[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if S[S_MODE0] == 0 else 0.0)
-    O[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if S[S_MODE0 + 1] == 0 else 0.0)
-    O[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
-    O[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
-    O[O_FAX] = fa_thr
-    O[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
-    O[O_TE] = S[S_TE]
-    O[O_TBR] = tbr
-    O[O_FG] = fg
-    O[O_NSUB] = nsub
+    out[O_NLA] = pla / cl
+    out[O_NUA] = pua / cl
+    out[O_NLB] = plb / cl
+    out[O_NUB] = pub / cl
+    out[O_FFA] = ffa
+    out[O_FFB] = ffb
+    out[O_VSA] = rc * S[S_DQ] + sl * S[S_VA]
+    out[O_VSB] = rc * S[S_DQ] + sl * S[S_VB] if ab else 0.0
+    out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if S[S_MODE0] == 0 else 0.0)
+    out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if S[S_MODE0 + 1] == 0 else 0.0)
+    out[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
+    out[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
+    out[O_FAX] = fa_thr
+    out[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
+    out[O_TE] = S[S_TE]
+    out[O_TBR] = tbr
+    out[O_FG] = fg
+    out[O_NSUB] = nsub
     return 0

@@ -1,4 +1,5 @@
-"""LeadScrewModel: parameters + state + the fixed-step kernel (ROS-free).
+"""
+LeadScrewModel: parameters + state + the fixed-step kernel (ROS-free).
 
 Sign convention (physics.md section 3): theta follows the right-hand rule
 about +x; the motor torque and screw angle are reported in that sense. A
@@ -141,7 +142,8 @@ def auto_substep(p):
 
 
 class LeadScrewModel:
-    """A lead screw axis: validated parameters, a state vector and step().
+    """
+    A lead screw axis: validated parameters, a state vector and step().
 
     The state is a plain float64 array (layout in ``kernel``); ``step``
     advances it by exactly ``dt`` in equal substeps.
@@ -160,7 +162,7 @@ class LeadScrewModel:
         self.reset()
 
     def substeps_for(self, dt):
-        """Number of equal substeps used for a step of dt [s]."""
+        """Return the number of equal substeps for a step of dt [s]."""
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ParameterError('dt', f'{dt!r} s must be a positive finite step')
         n = max(1, math.ceil(dt / self.substep - 1e-9))
@@ -196,7 +198,8 @@ class LeadScrewModel:
 
     # Stepping ---------------------------------------------------------------
     def step(self, torque, dt=None, external_force=0.0):
-        """Advance by dt [s] (default: the model's dt) under a motor torque [N m].
+        """
+        Advance by dt [s] (default: the model's dt) under a motor torque [N m].
 
         torque follows the theta sense; external_force [N] acts on the nut
         along +x in addition to the parameter. Non-finite inputs raise
@@ -231,11 +234,11 @@ class LeadScrewModel:
     # Views ------------------------------------------------------------------
     @property
     def time(self):
-        """Simulated time [s]."""
+        """Return the simulated time [s]."""
         return self.state[K.S_T]
 
     def output(self):
-        """The StepOutput of the current state and last step."""
+        """Return the StepOutput of the current state and last step."""
         s, o, hs = self.state, self.out, self.params.hand_sign
         return StepOutput(
             time=s[K.S_T], motor_angle=hs * s[K.S_QM], motor_velocity=hs * s[K.S_WM],

@@ -1,4 +1,5 @@
-"""Validated, immutable physical parameters of the lead screw axis (SI units).
+"""
+Validated, immutable physical parameters of the lead screw axis (SI units).
 
 Every field carries its unit, a description and its allowed range in the
 dataclass metadata; the ROS node builds its parameter descriptors from them.
@@ -132,7 +133,7 @@ class ScrewParams:
 
     @property
     def hand_sign(self):
-        """h in q = h theta: -1 for a right-hand thread, +1 for left."""
+        """Return h of q = h theta: -1 for a right-hand thread, +1 for left."""
         return -1.0 if self.hand == 'right' else 1.0
 
     @property
@@ -143,7 +144,7 @@ class ScrewParams:
 
     @property
     def self_locking(self):
-        """True if the thread holds any axial load with zero torque."""
+        """Return True if the thread holds any axial load with zero torque."""
         return geometry.is_self_locking(self.mu_s * self.thread_factor, self.lead_angle)
 
     def replace(self, **changes):
@@ -186,9 +187,9 @@ class ScrewParams:
         if not self.stroke_min <= self.initial_position <= self.stroke_max:
             raise ParameterError('initial_position', f'{self.initial_position} m lies '
                                  f'outside the stroke [{self.stroke_min}, {self.stroke_max}] m')
-        mu_max = max(self.mu_s, self.mu_k) * self.thread_factor
-        if mu_max * math.tan(self.lead_angle) >= 1.0:
-            raise ParameterError('mu_s', f"mu' tan(lambda) = {mu_max * math.tan(self.lead_angle):.3g}"
+        jam = max(self.mu_s, self.mu_k) * self.thread_factor * math.tan(self.lead_angle)
+        if jam >= 1.0:
+            raise ParameterError('mu_s', f"mu' tan(lambda) = {jam:.3g}"
                                  ' >= 1: the thread jams and cannot be driven against a load'
                                  ' (reduce friction or the lead angle)')
         if self.collar_mu > 0.0 and self.collar_radius == 0.0:

@@ -36,7 +36,7 @@ class NodeProcess:
         self._log.flush()
         return Path(self.log_path).read_text(errors='replace')
 
-    def signal(self, sig):
+    def send(self, sig):
         """Send a signal to the process."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)

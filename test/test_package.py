@@ -48,7 +48,8 @@ def test_executables_in_lib(install_prefix, exe):
 
 
 def test_presets_installed(install_prefix):
-    installed = sorted(p.name for p in (install_prefix / 'share/leadscrew_sim/config').glob('*.yaml'))
+    share = install_prefix / 'share/leadscrew_sim/config'
+    installed = sorted(p.name for p in share.glob('*.yaml'))
     source = sorted(p.name for p in (REPO / 'config').glob('*.yaml'))
     assert source and installed == source
 
