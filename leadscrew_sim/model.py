@@ -161,6 +161,23 @@ class LeadScrewModel:
         self.fault = None
         self.reset()
 
+    def set_params(self, params):
+        """
+        Swap in new parameters at run time, keeping the state.
+
+        Raises ParameterError (state untouched) if the new set needs more
+        substeps than allowed. Geometry and the anti-backlash flag change the
+        meaning of the state; callers should treat them as read-only.
+        """
+        new_h = auto_substep(params)
+        old = (self.params, self._P, self.substep, self.nsub)
+        self.params, self._P, self.substep = params, pack_params(params), new_h
+        try:
+            self.nsub = self.substeps_for(self.dt)
+        except ParameterError:
+            self.params, self._P, self.substep, self.nsub = old
+            raise
+
     def substeps_for(self, dt):
         """Return the number of equal substeps for a step of dt [s]."""
         if not (dt > 0.0 and math.isfinite(dt)):
