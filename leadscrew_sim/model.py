@@ -158,6 +158,7 @@ class LeadScrewModel:
         self.nsub = self.substeps_for(self.dt)
         self.state = np.zeros(K.NS)
         self.out = np.zeros(K.NO)
+        self._wk, self._iwk = K.workspace()
         self.fault = None
         self.reset()
 
@@ -238,7 +239,7 @@ class LeadScrewModel:
             n = self.substeps_for(dt)
         backup = self.state.copy()
         rc = K.step(self._P, self.state, self.out, self._P_hand() * torque,
-                    float(external_force), float(dt), n)
+                    float(external_force), float(dt), n, self._wk, self._iwk)
         if rc != 0:
             self.state[:] = backup
             self.fault = (f'non-finite state at t={backup[K.S_T]:.6f} s '

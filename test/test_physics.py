@@ -302,7 +302,7 @@ def test_stick_slip_limit_cycle():
 
 
 @pytest.mark.parametrize('change', [dict(coupling_damping=0.05),
-                                   dict(mu_s=0.15, mu_k=0.15, mu_viscous=0.0)])
+                                    dict(mu_s=0.15, mu_k=0.15, mu_viscous=0.0)])
 def test_stick_slip_removed_by_damping_or_flat_friction(change):
     t, stuck = _speed_driven(load_preset('stick_slip').replace(**change))
     assert not stuck[t > 2.0].any()

@@ -1,0 +1,88 @@
+"""
+Benchmark the physics core: ns per substep, real-time factor, and LSODA side by side.
+
+Run: make bench   (or: .venv/bin/python bench/bench_model.py [--seconds 20])
+Prints, in one run on this machine:
+- ns per substep of the full model (backlash + stiction + anti-backlash preset);
+- simulated seconds per wall second for each preset at dt = 1 ms, no I/O;
+- the same smooth case integrated by our kernel and by scipy's solve_ivp (LSODA),
+  with the wall time ratio.
+"""
+import argparse
+import math
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from leadscrew_sim import kernel as K
+from leadscrew_sim import LeadScrewModel, load_preset, preset_names
+
+
+def kernel_rate(params, sim_seconds, dt=1e-3):
+    """Return (ns per substep, sim s per wall s) for a sine torque drive."""
+    m = LeadScrewModel(params, dt=dt)
+    n = int(sim_seconds / dt)
+    torques = 0.3 * params.max_torque * np.sin(2 * math.pi * 0.5 * np.arange(n) * dt)
+    K.step(m._P, m.state, m.out, 0.0, 0.0, dt, m.nsub, m._wk, m._iwk)   # compile, warm up
+    m.reset()
+    t0 = time.perf_counter()
+    for tq in torques:
+        K.step(m._P, m.state, m.out, tq, 0.0, dt, m.nsub, m._wk, m._iwk)
+    wall = time.perf_counter() - t0
+    return wall / (n * m.nsub) * 1e9, sim_seconds / wall, m.nsub
+
+
+def lsoda_side_by_side(sim_seconds):
+    """Integrate the same smooth sliding case with our kernel and with LSODA."""
+    p = load_preset('tr8x8').replace(mu_s=0.12, mu_k=0.12, mu_viscous=0.5,
+                                     bearing_viscous=2e-4, stroke_min=-10.0, stroke_max=10.0)
+    tq = -0.04
+    m = LeadScrewModel(p, dt=1e-3)
+    y0 = m.state[[K.S_Q, K.S_DQ, K.S_XA, K.S_VA]].copy()
+    t0 = time.perf_counter()
+    for _ in range(int(sim_seconds / 1e-3)):
+        K.step(m._P, m.state, m.out, p.hand_sign * tq, 0.0, 1e-3, m.nsub, m._wk, m._iwk)
+    ours = time.perf_counter() - t0
+    lam = p.lead_angle
+    rm, sl, cl = p.r_m, math.sin(lam), math.cos(lam)
+    rt, j = rm * math.tan(lam), p.motor_inertia + p.screw_inertia
+    mass, k, c, hb = p.nut_mass + p.payload_mass, p.contact_stiffness, p.contact_damping, \
+        p.backlash / 2
+    tq_q = p.hand_sign * tq
+
+    def rhs(t, y):
+        q, dq, x, v = y
+        d, dd = x - rt * q, v - rt * dq
+        pl = max(0.0, k * (-d - hb) - c * dd) if -d - hb > 0 else 0.0
+        pu = max(0.0, k * (d - hb) + c * dd) if d - hb > 0 else 0.0
+        vs = rm * dq * cl + v * sl
+        mu = (p.mu_k + p.mu_viscous * abs(vs)) * p.thread_factor
+        ff = -mu * (pl + pu) / cl * np.sign(vs)
+        n = (pl - pu) / cl
+        return [dq, (tq_q - p.bearing_viscous * dq + rm * (-n * sl + ff * cl)) / j,
+                v, (n * cl + ff * sl - mass * p.gravity - p.guide_viscous * v) / mass]
+    t0 = time.perf_counter()
+    sol = solve_ivp(rhs, (0, sim_seconds), y0, method='LSODA', rtol=1e-6, atol=1e-9)
+    lsoda = time.perf_counter() - t0
+    dx = abs(sol.y[2, -1] - m.state[K.S_XA])
+    return ours, lsoda, dx, sol.nfev
+
+
+def main():
+    """Run the benchmark and print a table."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument('--seconds', type=float, default=20.0, help='simulated s per preset')
+    args = ap.parse_args()
+    print(f'{"preset":<15}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}')
+    for name in preset_names():
+        ns, rtf, nsub = kernel_rate(load_preset(name), args.seconds)
+        print(f'{name:<15}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}')
+    ours, lsoda, dx, nfev = lsoda_side_by_side(min(args.seconds, 5.0))
+    print(f'\nsmooth case, {min(args.seconds, 5.0)} s simulated: kernel {ours:.3f} s wall, '
+          f'LSODA {lsoda:.3f} s wall ({nfev} RHS calls), ratio LSODA/kernel '
+          f'{lsoda / ours:.1f}x, final |dx| {dx:.2e} m')
+
+
+if __name__ == '__main__':
+    main()
