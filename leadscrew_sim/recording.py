@@ -1,0 +1,550 @@
+"""
+MCAP recording of already-serialized ROS 2 messages, readable by rosbag2 tools.
+
+The recorder only knows topics, type names and CDR bytes; it never imports
+rclpy. Files follow the rosbag2 MCAP layout: profile ``ros2``, one ``ros2msg``
+schema per type (:func:`leadscrew_sim.msgdefs.ros2msg_definition`), ``cdr``
+channels with ``offered_qos_profiles`` metadata, zstd-compressed chunks with
+message indexes, a summary with statistics, and a ``rosbag2`` metadata record
+(``serialized_metadata``, rosbag2 BagMetadata version 9) written at close.
+
+Loss bound on a crash (SIGKILL, power is not covered: no fsync): the open
+chunk is written and the file flushed every ``flush_interval`` seconds of
+wall time, checked on each :meth:`McapRecorder.write` (and on
+:meth:`McapRecorder.flush`). A killed process therefore loses at most the
+messages of the last ``flush_interval`` s plus one write period; the rest is
+read back by :func:`recover`. Times are in nanoseconds, sizes in bytes.
+"""
+import math
+import os
+import re
+import threading
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
+import yaml
+
+from .msgdefs import cdr_length, full_type_name, ros2msg_definition, type_hash
+
+try:
+    from importlib.metadata import version as _version
+    LIBRARY = f'leadscrew_sim/{_version("leadscrew_sim")}; {LIBRARY_IDENTIFIER}'
+except Exception:  # noqa: B902 - package metadata is optional (source checkout)
+    LIBRARY = f'leadscrew_sim; {LIBRARY_IDENTIFIER}'
+
+ROSBAG2_METADATA_VERSION = 9
+ROSBAG2_METADATA_NAME = 'rosbag2'
+DURATION_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
+PREFIX_RE = re.compile(r'^[A-Za-z0-9_-]{1,64}$')
+
+_QOS_CHOICES = {
+    'history': ('keep_last', 'keep_all', 'system_default', 'unknown'),
+    'reliability': ('reliable', 'best_effort', 'system_default', 'unknown'),
+    'durability': ('volatile', 'transient_local', 'system_default', 'unknown'),
+    'liveliness': ('automatic', 'manual_by_topic', 'system_default', 'unknown'),
+}
+
+
+def _dump_yaml(value):
+    return yaml.safe_dump(value, sort_keys=False, default_flow_style=False).rstrip('\n')
+
+
+def _qos_list(qos):
+    try:
+        profiles = yaml.safe_load(qos)
+    except yaml.YAMLError:
+        return []
+    return profiles if isinstance(profiles, list) else []
+
+
+def _one_line(exc, path):
+    return f'{path}: {exc.__class__.__name__}: {exc}'.replace('\n', ' ')
+
+
+def qos_profile_yaml(*, reliability='reliable', durability='volatile', history='keep_last',
+                     depth=10, liveliness='automatic'):
+    """
+    Return an ``offered_qos_profiles`` string for one publisher, as rosbag2 writes it.
+
+    The form is the YAML sequence rosbag2_storage serializes (metadata version 9:
+    policy names as strings; deadline, lifespan and liveliness lease as
+    ``{sec, nsec}``, here infinite). ``depth`` is the history depth in messages.
+    """
+    profile = {'history': history, 'depth': int(depth), 'reliability': reliability,
+               'durability': durability, 'deadline': dict(DURATION_INFINITE),
+               'lifespan': dict(DURATION_INFINITE), 'liveliness': liveliness,
+               'liveliness_lease_duration': dict(DURATION_INFINITE),
+               'avoid_ros_namespace_conventions': False}
+    for key, allowed in _QOS_CHOICES.items():
+        if profile[key] not in allowed:
+            raise ValueError(f'QoS {key} must be one of {allowed}, not {profile[key]!r}')
+    return _dump_yaml([profile])
+
+
+DEFAULT_QOS = qos_profile_yaml()
+
+
+class _Guarded:
+    """
+    Serialize calls and make ``close()`` safe from a signal handler.
+
+    A ``close()`` that interrupts an operation of the same object (a signal
+    handler running mid-``write``) is deferred to the end of that operation.
+    """
+
+    def __init__(self):
+        self._lock = threading.RLock()
+        self._busy = 0
+        self._close_pending = False
+
+    @contextmanager
+    def _op(self):
+        with self._lock:
+            self._busy += 1
+            try:
+                yield
+            finally:
+                self._busy -= 1
+                if not self._busy and self._close_pending:
+                    self._close_pending = False
+                    self._close_now()
+
+    def close(self):
+        """Finish the file(s); idempotent, never raises on I/O errors."""
+        with self._lock:
+            if self._busy:
+                self._close_pending = True
+            else:
+                self._close_now()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class McapRecorder(_Guarded):
+    """
+    Write one rosbag2-compatible MCAP file from serialized (CDR) messages.
+
+    ``flush_interval`` is in seconds of wall time (0 flushes on every write),
+    ``chunk_size`` in uncompressed bytes. I/O errors (``OSError``: unwritable
+    directory, disk full, ...) never escape: they set :attr:`error` to a
+    one-line message and stop the recording; data flushed before stays in the
+    file and can be read back with :func:`recover`.
+    """
+
+    def __init__(self, path, *, flush_interval=1.0, chunk_size=1 << 20):
+        super().__init__()
+        if not flush_interval >= 0:
+            raise ValueError(f'flush_interval must be >= 0 s, not {flush_interval!r}')
+        self.path = str(path)
+        self.flush_interval = float(flush_interval)
+        self.error = None
+        self.messages_written = 0
+        self._size = 0
+        self._closed = False
+        self._channels = {}      # id -> dict(topic, type, qos, count)
+        self._topic_ids = {}     # topic -> id
+        self._schema_ids = {}    # type name -> schema id
+        self._t_first = None     # first/last log time, ns
+        self._t_last = None
+        self._fh = self._writer = None
+        self._last_flush = time.monotonic()
+        try:
+            self._fh = open(self.path, 'wb')
+            self._writer = Writer(self._fh, chunk_size=int(chunk_size),
+                                  compression=CompressionType.ZSTD)
+            self._writer.start(profile='ros2', library=LIBRARY)
+            self._fh.flush()
+            self._size = self._fh.tell()
+        except OSError as exc:
+            self._fail(exc)
+
+    @property
+    def bytes_written(self):
+        """Bytes handed to the file so far (the open chunk is not counted)."""
+        return self._size
+
+    @property
+    def closed(self):
+        """Return True once :meth:`close` ran (or an I/O error ended the file)."""
+        return self._closed or self._writer is None
+
+    @property
+    def channels(self):
+        """Return ``{channel_id: (topic, msg_type, qos)}`` of the registered channels."""
+        return {cid: (c['topic'], c['type'], c['qos']) for cid, c in self._channels.items()}
+
+    def add_channel(self, topic, msg_type, qos=None):
+        """
+        Register ``topic`` carrying ``msg_type`` (``'pkg/msg/Type'``); return the channel id.
+
+        ``qos`` is an ``offered_qos_profiles`` YAML string (see
+        :func:`qos_profile_yaml`); ``None`` means reliable, volatile, keep last 10.
+        Registering the same topic and type again returns the same id.
+        """
+        msg_type = full_type_name(msg_type)
+        qos = DEFAULT_QOS if qos is None else qos
+        profiles = _qos_list(qos)
+        if not (profiles and all(isinstance(p, dict) for p in profiles)):
+            raise ValueError(f'qos for {topic!r} is not a YAML list of QoS profiles')
+        with self._op():
+            if topic in self._topic_ids:
+                cid = self._topic_ids[topic]
+                if self._channels[cid]['type'] != msg_type:
+                    raise ValueError(f'topic {topic!r} already recorded as '
+                                     f'{self._channels[cid]["type"]}, not {msg_type}')
+                return cid
+            definition = ros2msg_definition(msg_type)
+            return self._register(topic, msg_type, 'ros2msg', definition.encode(), qos,
+                                  trim=True)
+
+    def _register(self, topic, msg_type, schema_encoding, schema_data, qos, metadata=None,
+                  trim=False):
+        metadata = dict(metadata or {})
+        metadata.setdefault('offered_qos_profiles', qos)
+        metadata.setdefault('topic_type_hash', type_hash(msg_type) if '/msg/' in msg_type else '')
+        cid = len(self._channels) + 1
+        self._channels[cid] = {'topic': topic, 'type': msg_type, 'qos': qos, 'count': 0,
+                               'trim': trim}
+        self._topic_ids[topic] = cid
+        if self._writer is None:
+            return cid
+        try:
+            sid = self._schema_ids.get(msg_type)
+            if sid is None:
+                sid = self._writer.register_schema(msg_type, schema_encoding, schema_data)
+                self._schema_ids[msg_type] = sid
+            wid = self._writer.register_channel(topic, 'cdr', sid, metadata)
+            assert wid == cid, (wid, cid)
+        except OSError as exc:
+            self._fail(exc)
+        return cid
+
+    def write(self, channel_id, data, log_time_ns, publish_time_ns=None, *, _sequence=None):
+        """
+        Append one serialized message; never raises on I/O errors.
+
+        ``log_time_ns`` is the receive/publish time in ns (uint64, e.g. since the
+        epoch or sim time), ``publish_time_ns`` defaults to it. Raises
+        ``ValueError`` only for an unknown channel id or a negative time.
+        Bytes after the end of the CDR message are dropped (``rmw_serialize``
+        of rmw_fastrtps may return a buffer longer than the message, ending in
+        uninitialized bytes, which strict readers such as rosbags reject).
+        """
+        with self._op():
+            channel = self._channels.get(channel_id)
+            if channel is None:
+                raise ValueError(f'unknown channel id {channel_id!r}')
+            log_time_ns = int(log_time_ns)
+            publish_time_ns = log_time_ns if publish_time_ns is None else int(publish_time_ns)
+            if log_time_ns < 0 or publish_time_ns < 0:
+                raise ValueError('message times must be >= 0 ns')
+            if self._writer is None:
+                return
+            seq = channel['count'] if _sequence is None else _sequence
+            data = bytes(data)
+            if channel['trim']:
+                end = cdr_length(channel['type'], data)
+                if end is not None and end < len(data):
+                    data = data[:end]
+            try:
+                self._writer.add_message(channel_id, log_time_ns, data, publish_time_ns,
+                                         sequence=seq & 0xFFFFFFFF)
+                channel['count'] += 1
+                self.messages_written += 1
+                if self._t_first is None:
+                    self._t_first = self._t_last = log_time_ns
+                self._t_first = min(self._t_first, log_time_ns)
+                self._t_last = max(self._t_last, log_time_ns)
+                if time.monotonic() - self._last_flush >= self.flush_interval:
+                    self._flush_locked()
+                else:
+                    self._size = self._fh.tell()
+            except OSError as exc:
+                self._fail(exc)
+
+    def flush(self):
+        """Write the open chunk and flush the file now (no fsync)."""
+        with self._op():
+            if self._writer is not None:
+                try:
+                    self._flush_locked()
+                except OSError as exc:
+                    self._fail(exc)
+
+    def _flush_locked(self):
+        self._writer.flush()
+        self._size = self._fh.tell()
+        self._last_flush = time.monotonic()
+
+    def add_metadata(self, name, data):
+        """Write a metadata record ``name`` with string keys and values (``str()`` applied)."""
+        if name == ROSBAG2_METADATA_NAME:
+            raise ValueError(f'metadata name {name!r} is reserved for the recorder')
+        data = {str(k): str(v) for k, v in dict(data).items()}
+        with self._op():
+            if self._writer is None:
+                return
+            try:
+                self._writer.add_metadata(str(name), data)
+                self._fh.flush()
+                self._size = self._fh.tell()
+            except OSError as exc:
+                self._fail(exc)
+
+    def bag_metadata(self):
+        """Return the rosbag2 BagMetadata (version 9) of this file as a dict."""
+        count = self.messages_written
+        start = self._t_first or 0
+        duration = (self._t_last - self._t_first) if count else 0
+        name = os.path.basename(self.path)
+        topics = [{'topic_metadata': {
+            'name': c['topic'], 'type': c['type'], 'serialization_format': 'cdr',
+            'offered_qos_profiles': _qos_list(c['qos']),
+            'type_description_hash': type_hash(c['type']) if '/msg/' in c['type'] else ''},
+            'message_count': c['count']} for c in self._channels.values()]
+        return {
+            'version': ROSBAG2_METADATA_VERSION, 'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': count, 'topics_with_message_count': topics,
+            'compression_format': '', 'compression_mode': '',
+            'relative_file_paths': [name],
+            'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
+                       'duration': {'nanoseconds': duration}, 'message_count': count}],
+            'custom_data': {}, 'ros_distro': os.environ.get('ROS_DISTRO') or 'jazzy'}
+
+    def _close_now(self):
+        if self._closed:
+            return
+        self._closed = True
+        if self._writer is None:
+            return
+        try:
+            self._writer.add_metadata(ROSBAG2_METADATA_NAME,
+                                      {'serialized_metadata': _dump_yaml(self.bag_metadata())})
+            self._writer.finish()
+            self._fh.flush()
+            self._size = self._fh.tell()
+            self._fh.close()
+        except OSError as exc:
+            self._fail(exc)
+        self._writer = None
+
+    def _fail(self, exc):
+        if self.error is None:
+            self.error = _one_line(exc, self.path)
+        self._writer = None
+        if self._fh is not None:
+            try:
+                self._fh.close()
+            except OSError:
+                pass
+
+
+class RecordingSession(_Guarded):
+    """
+    Record into ``directory`` as ``<prefix>_<YYYYmmdd-HHMMSS>_<NNN>.mcap`` files.
+
+    A new file starts before a write when the current one holds at least
+    ``split_bytes`` bytes or the message's log time is ``split_seconds`` s or
+    more after the file's first message (0 = never). Every file is complete on
+    its own: it re-registers all channels (same ids) and repeats all metadata.
+    A size split happens once the flushed data reach ``split_bytes`` (chunks are
+    limited to ``split_bytes / 4``), so a file ends up to one chunk plus its
+    summary (schemas, indexes, metadata: a few KiB) above ``split_bytes``.
+    ``metadata`` maps record names to ``{str: str}`` dicts written to each file.
+    """
+
+    def __init__(self, directory, *, prefix='run', split_bytes=0, split_seconds=0.0,
+                 flush_interval=1.0, metadata=None):
+        super().__init__()
+        if not isinstance(prefix, str) or not PREFIX_RE.match(prefix):
+            raise ValueError(f'record_prefix {prefix!r} must match {PREFIX_RE.pattern}')
+        if not split_bytes >= 0 or not split_seconds >= 0:
+            raise ValueError('split_bytes and split_seconds must be >= 0 (0 = never)')
+        self.directory = Path(directory)
+        self.prefix = prefix
+        self.split_bytes = int(split_bytes)
+        self.split_ns = int(split_seconds * 1e9) if math.isfinite(split_seconds) else 0
+        self.flush_interval = flush_interval
+        self._stamp = time.strftime('%Y%m%d-%H%M%S')
+        self._index = 0
+        self._files = []
+        self._channels = []      # (topic, msg_type, qos); id = index + 1
+        self._metadata = {}
+        self._error = None
+        self._done_messages = self._done_bytes = 0
+        self._rec = None
+        self._file_t0 = None
+        self._closed = False
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            self._error = _one_line(exc, self.directory)
+        for name, data in (metadata or {}).items():
+            self._metadata[str(name)] = dict(data)
+        self._open_next()
+
+    @property
+    def files(self):
+        """Return the paths (str) of all files of this session, the current one last."""
+        return list(self._files)
+
+    @property
+    def current_path(self):
+        """Return the path of the file being written, or None."""
+        return self._rec.path if self._rec is not None else None
+
+    @property
+    def messages_written(self):
+        """Return the messages written over all files."""
+        return self._done_messages + (self._rec.messages_written if self._rec else 0)
+
+    @property
+    def bytes_written(self):
+        """Return the bytes written over all files."""
+        return self._done_bytes + (self._rec.bytes_written if self._rec else 0)
+
+    @property
+    def error(self):
+        """Return None or a one-line description of the I/O error that stopped recording."""
+        return self._error or (self._rec.error if self._rec is not None else None)
+
+    def _open_next(self):
+        if self._error is not None:
+            return
+        root = self.directory.resolve()
+        while True:
+            path = root / f'{self.prefix}_{self._stamp}_{self._index:03d}.mcap'
+            self._index += 1
+            if not os.path.lexists(path):
+                break
+        if path.resolve().parent != root:
+            self._error = f'{path}: refusing to write outside {root}'
+            return
+        chunk = 1 << 20
+        if self.split_bytes:
+            chunk = max(4096, min(chunk, self.split_bytes // 4))
+        rec = McapRecorder(path, flush_interval=self.flush_interval, chunk_size=chunk)
+        self._files.append(str(path))
+        self._rec, self._file_t0 = rec, None
+        for topic, msg_type, qos in self._channels:
+            rec.add_channel(topic, msg_type, qos)
+        for name, data in self._metadata.items():
+            rec.add_metadata(name, data)
+
+    def _rotate(self):
+        rec = self._rec
+        rec.close()
+        self._done_messages += rec.messages_written
+        self._done_bytes += rec.bytes_written
+        if rec.error:
+            self._error = rec.error
+        self._rec = None
+        self._open_next()
+
+    def add_channel(self, topic, msg_type, qos=None):
+        """Register a channel in every file of the session; return its (stable) id."""
+        msg_type = full_type_name(msg_type)
+        qos = DEFAULT_QOS if qos is None else qos
+        with self._op():
+            for i, (t, mt, _) in enumerate(self._channels):
+                if t == topic:
+                    if mt != msg_type:
+                        raise ValueError(f'topic {topic!r} already recorded as {mt}')
+                    return i + 1
+            cid = len(self._channels) + 1
+            if self._rec is not None:
+                got = self._rec.add_channel(topic, msg_type, qos)
+                assert got == cid, (got, cid)
+            else:
+                ros2msg_definition(msg_type)     # same errors as with an open file
+            self._channels.append((topic, msg_type, qos))
+            return cid
+
+    def write(self, channel_id, data, log_time_ns, publish_time_ns=None):
+        """Append one serialized message (see :meth:`McapRecorder.write`), splitting first."""
+        with self._op():
+            if not 1 <= channel_id <= len(self._channels):
+                raise ValueError(f'unknown channel id {channel_id!r}')
+            if self._rec is None or self._closed:
+                return
+            rec = self._rec
+            if rec.messages_written and (
+                    (self.split_bytes and rec.bytes_written >= self.split_bytes)
+                    or (self.split_ns and log_time_ns - self._file_t0 >= self.split_ns)):
+                self._rotate()
+                if self._rec is None:
+                    return
+            if self._file_t0 is None:
+                self._file_t0 = int(log_time_ns)
+            self._rec.write(channel_id, data, log_time_ns, publish_time_ns)
+
+    def flush(self):
+        """Write the open chunk of the current file and flush it."""
+        with self._op():
+            if self._rec is not None:
+                self._rec.flush()
+
+    def add_metadata(self, name, data):
+        """Write metadata ``name`` to the current file and to every later one."""
+        data = {str(k): str(v) for k, v in dict(data).items()}
+        with self._op():
+            self._metadata[str(name)] = data
+            if self._rec is not None:
+                self._rec.add_metadata(name, data)
+
+    def _close_now(self):
+        if self._closed:
+            return
+        self._closed = True
+        if self._rec is not None:
+            self._rec.close()
+
+
+def recover(src, dst):
+    """
+    Rewrite a truncated MCAP file (e.g. of a killed recorder) as a complete one.
+
+    Reads ``src`` front to back until the first incomplete or corrupt record
+    and writes every complete message, with its schema, channel and the
+    metadata records, to ``dst``. Returns the number of messages recovered.
+    Raises ``OSError`` if ``src`` cannot be read or ``dst`` cannot be written.
+    """
+    if os.path.abspath(src) == os.path.abspath(dst):
+        raise ValueError('recover() needs a destination different from the source')
+    with open(src, 'rb') as f:
+        out = McapRecorder(dst, flush_interval=math.inf)
+        schemas, channels, count = {}, {}, 0
+        try:
+            for record in StreamReader(f, record_size_limit=1 << 30).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel) and record.id not in channels:
+                    schema = schemas.get(record.schema_id)
+                    if schema is None:
+                        continue
+                    meta = dict(record.metadata)
+                    channels[record.id] = out._register(
+                        record.topic, schema.name, schema.encoding, schema.data,
+                        meta.get('offered_qos_profiles', DEFAULT_QOS), meta)
+                elif isinstance(record, Message) and record.channel_id in channels:
+                    out.write(channels[record.channel_id], record.data, record.log_time,
+                              record.publish_time, _sequence=record.sequence)
+                    count += 1
+                elif isinstance(record, Metadata) and record.name != ROSBAG2_METADATA_NAME:
+                    out.add_metadata(record.name, record.metadata)
+        except Exception:  # noqa: B902 - the first truncated/corrupt record ends the data
+            pass
+        out.close()
+    if out.error:
+        raise OSError(out.error)
+    return count
