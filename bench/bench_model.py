@@ -30,7 +30,12 @@ def kernel_rate(params, sim_seconds, dt=1e-3):
     for tq in torques:
         K.step(m._P, m.state, m.out, tq, 0.0, dt, m.nsub, m._wk, m._iwk)
     wall = time.perf_counter() - t0
-    return wall / (n * m.nsub) * 1e9, sim_seconds / wall, m.nsub
+    m.reset()
+    t0 = time.perf_counter()
+    m.run(torques)                      # the same steps in one compiled call
+    batch = time.perf_counter() - t0
+    return wall / (n * m.nsub) * 1e9, sim_seconds / wall, m.nsub, \
+        batch / (n * m.nsub) * 1e9, sim_seconds / batch
 
 
 def lsoda_side_by_side(sim_seconds):
@@ -74,10 +79,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--seconds', type=float, default=20.0, help='simulated s per preset')
     args = ap.parse_args()
-    print(f'{"preset":<15}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}')
+    print('per-step call = one kernel call per 1 ms tick (as the node does);')
+    print('batch = model.run(), all ticks in one compiled call (as simulate can)')
+    print(f'{"preset":<15}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}'
+          f'{"batch ns/sub":>14}{"batch x rt":>12}')
     for name in preset_names():
-        ns, rtf, nsub = kernel_rate(load_preset(name), args.seconds)
-        print(f'{name:<15}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}')
+        ns, rtf, nsub, bns, brtf = kernel_rate(load_preset(name), args.seconds)
+        print(f'{name:<15}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}{bns:>14.1f}{brtf:>12.0f}')
     ours, lsoda, dx, nfev = lsoda_side_by_side(min(args.seconds, 5.0))
     print(f'\nsmooth case, {min(args.seconds, 5.0)} s simulated: kernel {ours:.3f} s wall, '
           f'LSODA {lsoda:.3f} s wall ({nfev} RHS calls), ratio LSODA/kernel '

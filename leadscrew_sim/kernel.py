@@ -443,3 +443,24 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     out[O_FG] = fg
     out[O_NSUB] = nsub
     return 0
+
+
+REC_STATE = 10   # S[0:10] is recorded per step by run_series, then the NO outputs
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def run_series(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
+    """
+    Run one step per entry of torques/forces (q sense, N m and N).
+
+    After step i, rec[i, :REC_STATE] holds S[:REC_STATE] and rec[i, REC_STATE:]
+    the outputs. Returns the number of steps done (fewer on a non-finite state).
+    """
+    for i in range(torques.shape[0]):
+        if step(P, S, out, torques[i], forces[i], dt, nsub, wk, iwk) != 0:
+            return i
+        for j in range(REC_STATE):
+            rec[i, j] = S[j]
+        for j in range(NO):
+            rec[i, REC_STATE + j] = out[j]
+    return torques.shape[0]

@@ -246,6 +246,46 @@ class LeadScrewModel:
                           f'(torque {torque} N m); integration stopped')
             raise FloatingPointError(self.fault)
 
+    def run(self, torques, external_forces=None):
+        """
+        Run one step of self.dt per torque [N m] in a single compiled call.
+
+        Returns a dict of arrays (time, screw_angle, screw_velocity,
+        motor_angle, motor_velocity, nut_position, nut_velocity, motor_torque,
+        axial_force, thread_torque, friction_force, normal_leading,
+        normal_trailing, sliding_velocity, contact, stuck), one entry per
+        step, in the same units and senses as StepOutput. Non-finite inputs
+        raise ValueError before anything runs.
+        """
+        tq = np.ascontiguousarray(torques, dtype=float)
+        fe = (np.zeros_like(tq) if external_forces is None
+              else np.ascontiguousarray(external_forces, dtype=float))
+        if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
+            raise ValueError('torques and external_forces must be finite and of equal length')
+        if self.fault:
+            raise FloatingPointError(self.fault)
+        rec = np.zeros((len(tq), K.REC_STATE + K.NO))
+        hs = self.params.hand_sign
+        done = K.run_series(self._P, self.state, self.out, hs * tq, fe, self.dt, self.nsub,
+                            self._wk, self._iwk, rec)
+        if done < len(tq):
+            self.fault = f'non-finite state at step {done}; integration stopped'
+        r = rec[:done]
+        res = dict(
+            time=r[:, K.S_T], screw_angle=hs * r[:, K.S_Q], screw_velocity=hs * r[:, K.S_DQ],
+            motor_angle=hs * r[:, K.S_QM], motor_velocity=hs * r[:, K.S_WM],
+            nut_position=r[:, K.S_XA], nut_velocity=r[:, K.S_VA])
+        o = K.REC_STATE
+        res.update(
+            motor_torque=hs * r[:, o + K.O_TE], axial_force=r[:, o + K.O_FAX],
+            thread_torque=hs * r[:, o + K.O_TTH], friction_force=r[:, o + K.O_FFA],
+            normal_leading=r[:, o + K.O_NLA], normal_trailing=r[:, o + K.O_NUA],
+            sliding_velocity=r[:, o + K.O_VSA], contact=r[:, o + K.O_CONTA].astype(int),
+            stuck=r[:, o + K.O_STICKA] == 1.0)
+        if self.fault:
+            raise FloatingPointError(self.fault)
+        return res
+
     def _P_hand(self):
         return self.params.hand_sign
 
