@@ -378,8 +378,9 @@ class RunWriter:
         topics = list(M.COMMAND_TOPICS) + list(M.STATE_TOPICS) + (['/clock'] if clock else [])
         for rel in topics:
             msg_type, _role, qos = M.TOPICS[rel]
+            # our encoders write exact CDR, so the recorder need not trim
             self.ids[rel] = self.rec.add_channel(M.resolve(rel, namespace), msg_type,
-                                                 qos_profile_yaml(**qos))
+                                                 qos_profile_yaml(**qos), trim=False)
         self.write = self.rec.write
         self.enc = M.StateEncoder(joint_prefix)
 

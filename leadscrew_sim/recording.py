@@ -181,12 +181,15 @@ class McapRecorder(_Guarded):
         """Return ``{channel_id: (topic, msg_type, qos)}`` of the registered channels."""
         return {cid: (c['topic'], c['type'], c['qos']) for cid, c in self._channels.items()}
 
-    def add_channel(self, topic, msg_type, qos=None):
+    def add_channel(self, topic, msg_type, qos=None, trim=True):
         """
         Register ``topic`` carrying ``msg_type`` (``'pkg/msg/Type'``); return the channel id.
 
         ``qos`` is an ``offered_qos_profiles`` YAML string (see
         :func:`qos_profile_yaml`); ``None`` means reliable, volatile, keep last 10.
+        ``trim=False`` skips the CDR length check of every write, for bytes that
+        are known to be exact (``leadscrew_sim.messages`` encoders, DDS raw
+        subscriptions); it saves about half of the write cost.
         Registering the same topic and type again returns the same id.
         """
         msg_type = full_type_name(msg_type)
@@ -203,7 +206,7 @@ class McapRecorder(_Guarded):
                 return cid
             definition = ros2msg_definition(msg_type)
             return self._register(topic, msg_type, 'ros2msg', definition.encode(), qos,
-                                  trim=True)
+                                  trim=trim)
 
     def _register(self, topic, msg_type, schema_encoding, schema_data, qos, metadata=None,
                   trim=False):
@@ -378,7 +381,7 @@ class RecordingSession(_Guarded):
         self._stamp = time.strftime('%Y%m%d-%H%M%S')
         self._index = 0
         self._files = []
-        self._channels = []      # (topic, msg_type, qos); id = index + 1
+        self._channels = []      # (topic, msg_type, qos, trim); id = index + 1
         self._metadata = {}
         self._error = None
         self._done_messages = self._done_bytes = 0
@@ -436,8 +439,8 @@ class RecordingSession(_Guarded):
         rec = McapRecorder(path, flush_interval=self.flush_interval, chunk_size=chunk)
         self._files.append(str(path))
         self._rec, self._file_t0 = rec, None
-        for topic, msg_type, qos in self._channels:
-            rec.add_channel(topic, msg_type, qos)
+        for topic, msg_type, qos, trim in self._channels:
+            rec.add_channel(topic, msg_type, qos, trim)
         for name, data in self._metadata.items():
             rec.add_metadata(name, data)
 
@@ -451,23 +454,23 @@ class RecordingSession(_Guarded):
         self._rec = None
         self._open_next()
 
-    def add_channel(self, topic, msg_type, qos=None):
+    def add_channel(self, topic, msg_type, qos=None, trim=True):
         """Register a channel in every file of the session; return its (stable) id."""
         msg_type = full_type_name(msg_type)
         qos = DEFAULT_QOS if qos is None else qos
         with self._op():
-            for i, (t, mt, _) in enumerate(self._channels):
+            for i, (t, mt, _, _) in enumerate(self._channels):
                 if t == topic:
                     if mt != msg_type:
                         raise ValueError(f'topic {topic!r} already recorded as {mt}')
                     return i + 1
             cid = len(self._channels) + 1
             if self._rec is not None:
-                got = self._rec.add_channel(topic, msg_type, qos)
+                got = self._rec.add_channel(topic, msg_type, qos, trim)
                 assert got == cid, (got, cid)
             else:
                 ros2msg_definition(msg_type)     # same errors as with an open file
-            self._channels.append((topic, msg_type, qos))
+            self._channels.append((topic, msg_type, qos, trim))
             return cid
 
     def write(self, channel_id, data, log_time_ns, publish_time_ns=None):
