@@ -1,0 +1,178 @@
+"""
+Demo: start the node and drive the nut up and down with torque pulses.
+
+``python -m leadscrew_sim.demo --preset tr12x3 --duration 0`` (``make run``)
+starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
+pattern on ``torque_command`` and prints, every 0.5 s, the time, the
+commanded torque, the nut position [mm] and the thread contact state.
+Between pulses it commands the torque in the middle of the holding band, so
+a self-locking screw stands still; each pulse exceeds the raising or
+lowering threshold by 15 % for 0.1 s and the nut steps by a few mm toward a
+target of +20 mm or -20 mm, then turns around. Ctrl-C (or --duration)
+stops the demo and the node.
+"""
+import argparse
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+DEFAULT_DOMAIN_ID = '42'
+PULSE_PERIOD = 0.5          # s
+PULSE_LENGTH = 0.1          # s
+PULSE_GAIN = 1.15           # pulse torque beyond the threshold, relative
+TARGET = 0.02               # m, turn-around points +-TARGET
+PRINT_PERIOD = 0.5          # s
+
+
+def torque_band(params):
+    """
+    Return (hold, half_width) [N m] of the static holding band (theta sense).
+
+    Raising a load W along +x needs W r tan(lambda + phi), lowering it
+    W r tan(phi - lambda) (negative: the load back-drives the screw); a
+    torque between the two holds the nut. A right-hand thread moves the
+    nut toward -x for a positive torque (physics.md section 3).
+    """
+    p = params
+    load = p.moving_mass * p.gravity * math.sin(p.inclination) - p.external_force
+    phi = math.atan(p.mu_s * p.thread_factor)
+    lam = p.lead_angle
+    t_raise = load * p.r_m * math.tan(lam + phi)
+    t_lower = load * p.r_m * math.tan(phi - lam)
+    hs = p.hand_sign                 # torque sign that moves the nut toward +x
+    hold = hs * (t_raise - t_lower) / 2.0
+    half = max(abs(t_raise + t_lower) / 2.0, 0.05 * p.max_torque)
+    return hold, half
+
+
+def pulse_torque(t, x, state, hold, half, hand_sign):
+    """Return the torque at time t [s] for nut position x [m]; state holds the target."""
+    phase = t % PULSE_PERIOD
+    if phase < PULSE_LENGTH:
+        if not state.get('pulsing'):
+            state['pulsing'] = True
+            if x is not None and (state['target'] - x) * state['target'] < 0.0:
+                state['target'] = -state['target']
+            state['dir'] = 1.0 if x is None or state['target'] > x else -1.0
+        state['last'] = hold + state['dir'] * hand_sign * PULSE_GAIN * half
+        return state['last']
+    state['pulsing'] = False
+    return hold
+
+
+def main(argv=None):
+    """Run the demo; return the exit code."""
+    from .node import DEFAULT_PRESET
+    from .params import load_preset, ParameterError
+
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--preset', default=DEFAULT_PRESET,
+                    help='preset name (config/<name>.yaml); "default" = ' + DEFAULT_PRESET)
+    ap.add_argument('--duration', type=float, default=0.0,
+                    help='seconds to run; 0 = until Ctrl-C')
+    args = ap.parse_args(argv)
+    preset = DEFAULT_PRESET if args.preset == 'default' else args.preset
+    try:
+        params = load_preset(preset)
+    except ParameterError as exc:
+        print(f'demo: {exc}', file=sys.stderr)
+        return 2
+
+    # Stay off other people's ROS graph: this host only, and not domain 0.
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    if not os.environ.get('ROS_DOMAIN_ID'):
+        os.environ['ROS_DOMAIN_ID'] = DEFAULT_DOMAIN_ID
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from diagnostic_msgs.msg import DiagnosticArray
+    from std_msgs.msg import Float64
+
+    hold, half = torque_band(params)
+    print(f'demo: preset {preset} ({params.hand}-hand thread: a positive torque moves the '
+          f'nut toward {"-x" if params.hand == "right" else "+x"}); holding torque '
+          f'{hold:+.3f} N m, pulses of +-{PULSE_GAIN * half:.3f} N m; '
+          f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'leadscrew_sim.node', '--ros-args', '-p', f'preset:={preset}'],
+        start_new_session=True)
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('leadscrew_sim_demo')
+    latest = {'x': None, 'contact': '?'}
+
+    def on_x(msg):
+        latest['x'] = msg.data
+
+    def on_diag(msg):
+        for status in msg.status:
+            for kv in status.values:
+                if kv.key in ('contact', 'thread'):
+                    latest[kv.key] = kv.value
+
+    node.create_subscription(Float64, 'nut_position', on_x, 10)
+    node.create_subscription(DiagnosticArray, 'diagnostics', on_diag, 10)
+    pub = node.create_publisher(Float64, 'torque_command', 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    stop = {'now': False}
+
+    def on_signal(_signum, _frame):
+        stop['now'] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    code = 0
+    try:
+        print('demo: waiting for the node...', flush=True)
+        while latest['x'] is None and not stop['now']:
+            executor.spin_once(timeout_sec=0.05)
+            if child.poll() is not None:
+                print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
+                return child.returncode or 1
+        state = {'target': TARGET}
+        t0 = time.monotonic()
+        next_print = PULSE_PERIOD / 2.0          # print between pulses
+        torque = hold
+        while not stop['now']:
+            t = time.monotonic() - t0
+            if args.duration and t >= args.duration:
+                break
+            torque = pulse_torque(t, latest['x'], state, hold, half, params.hand_sign)
+            pub.publish(Float64(data=torque))
+            executor.spin_once(timeout_sec=0.01)
+            if t >= next_print:
+                next_print += PRINT_PERIOD
+                x = latest['x']
+                print(f't={t:7.2f} s  torque={torque:+8.4f} N m '
+                      f'(last pulse {state.get("last", hold):+8.4f})  '
+                      f'nut={x * 1e3:+9.3f} mm  contact={latest["contact"]} '
+                      f'({latest.get("thread", "?")})', flush=True)
+            if child.poll() is not None:
+                print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
+                code = child.returncode or 1
+                break
+    finally:
+        if child.poll() is None:
+            child.send_signal(signal.SIGINT)
+            try:
+                child.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                child.wait()
+        executor.shutdown()
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    print(f'demo: stopped (node exit code {child.returncode})', flush=True)
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

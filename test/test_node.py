@@ -1,0 +1,431 @@
+"""
+The ROS 2 node as a real process, exercised over DDS from the test process.
+
+Every test starts ``python -m leadscrew_sim.node`` (conftest ``run_exe``),
+talks to it through real middleware on an isolated domain and stops it.
+"""
+import math
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+import uuid
+
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+from leadscrew_sim.params import load_preset
+
+NODE = '/leadscrew_sim_node'
+DEEP = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+MS = 1_000_000
+
+
+def stamp_ns(msg):
+    """Return header.stamp in integer nanoseconds."""
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+class Ros:
+    """A test-side rclpy node on its own context, spun explicitly."""
+
+    def __init__(self, overrides=None):
+        self.ctx = Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=self.ctx,
+                                      parameter_overrides=overrides or [])
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.extra = []
+
+    def add_node(self, name, overrides=None):
+        """Add a second node to the executor."""
+        n = rclpy.create_node(name, context=self.ctx, parameter_overrides=overrides or [])
+        self.ex.add_node(n)
+        self.extra.append(n)
+        return n
+
+    def spin_for(self, seconds):
+        """Spin for a while."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def spin_until(self, pred, timeout):
+        """Spin until pred() is true or timeout; return pred()."""
+        end = time.monotonic() + timeout
+        while not pred() and time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=0.005)
+        return pred()
+
+    def collect(self, msg_type, topic, qos=DEEP, raw=False):
+        """Subscribe and return the list the messages are appended to."""
+        out = []
+        self.node.create_subscription(msg_type, topic, out.append, qos, raw=raw)
+        return out
+
+    def call(self, srv_type, name, request, timeout=10.0):
+        """Call a service and return the response."""
+        cli = self.node.create_client(srv_type, name)
+        assert self.spin_until(cli.service_is_ready, timeout), f'{name} not available'
+        fut = cli.call_async(request)
+        assert self.spin_until(fut.done, timeout), f'{name} did not answer'
+        return fut.result()
+
+    def close(self):
+        """Destroy everything."""
+        self.ex.shutdown()
+        for n in self.extra + [self.node]:
+            n.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def ros():
+    """Yield a test-side Ros helper."""
+    r = Ros()
+    yield r
+    r.close()
+
+
+def start_node(run_exe, *params, record=False):
+    """Start the node with -p params (record off unless asked)."""
+    args = ['--ros-args']
+    if not record:
+        args += ['-p', 'record:=false']
+    for p in params:
+        args += ['-p', p]
+    return run_exe('leadscrew_sim.node', *args)
+
+
+def wait_states(ros, states, proc, n=1, timeout=30.0):
+    """Wait until n joint_states arrived (or the node died)."""
+    ok = ros.spin_until(lambda: len(states) >= n or proc.proc.poll() is not None, timeout)
+    assert ok and len(states) >= n, f'no joint_states from the node:\n{proc.output()}'
+
+
+def command_publisher(ros, topic='torque_command', msg_type=Float64, timeout=10.0):
+    """Create a publisher and wait until the node subscribed to it."""
+    pub = ros.node.create_publisher(msg_type, topic, 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
+    return pub
+
+
+def latest_diag(diags, key):
+    """Value of a key in the latest diagnostics message, or None."""
+    if not diags:
+        return None
+    for kv in diags[-1].status[0].values:
+        if kv.key == key:
+            return kv.value
+    return None
+
+
+def nut_direction(torque, preset='tr12x3'):
+    """Return the expected sign of the nut motion for a torque (physics.md section 3)."""
+    hand = load_preset(preset).hand
+    # Right-hand thread: positive torque (theta sense) moves the nut toward -x.
+    return -math.copysign(1.0, torque) if hand == 'right' else math.copysign(1.0, torque)
+
+
+@pytest.mark.timeout(90)
+def test_torque_step_moves_nut_in_documented_direction(run_exe, ros, tmp_path):
+    proc = start_node(run_exe, f'record_dir:={tmp_path}', 'record_prefix:=t1', record=True)
+    states = ros.collect(JointState, 'joint_states')
+    xs = ros.collect(Float64, 'nut_position')
+    wait_states(ros, states, proc)
+    pub = command_publisher(ros)
+    for torque in (0.3, -0.4):
+        # From rest: ~/reset restores the initial state (and clears the command).
+        assert ros.call(Trigger, f'{NODE}/reset', Trigger.Request()).success
+        assert ros.spin_until(lambda: states[-1].effort[0] == 0.0
+                              and abs(states[-1].velocity[1]) < 1e-3, 10.0)
+        ros.spin_for(0.1)
+        start = len(states)
+        end = time.monotonic() + 0.6
+        while time.monotonic() < end:
+            pub.publish(Float64(data=torque))
+            ros.spin_for(0.05)
+        # The test side may lag behind the 1 kHz stream: wait on the data, not the clock.
+        assert ros.spin_until(lambda: torque in [s.effort[0] for s in states[start:]], 10.0)
+        first = next(i for i in range(start, len(states)) if states[i].effort[0] == torque)
+        assert ros.spin_until(lambda: len(states) > first + 300, 10.0)
+        dx = states[first + 300].position[1] - states[first - 1].position[1]
+        assert abs(dx) > 1e-3, (torque, dx)
+        assert math.copysign(1.0, dx) == nut_direction(torque), (torque, dx)
+
+    # nut_position and the nut_joint position of the same tick agree.
+    js_x = [s.position[1] for s in states]
+    unique = [i for i, m in enumerate(xs) if js_x.count(m.data) == 1]
+    assert unique
+    first = js_x.index(xs[unique[0]].data) - unique[0]
+    pairs = [(xs[i].data, js_x[first + i]) for i in range(len(xs))
+             if 0 <= first + i < len(js_x)]
+    assert len(pairs) > 500
+    assert max(abs(a - b) for a, b in pairs) <= 1e-12
+
+    # SIGTERM: clean exit, the recording is a complete MCAP file.
+    proc.send(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 0, proc.output()
+    files = sorted(tmp_path.glob('t1_*.mcap'))
+    assert files, proc.output()
+    from mcap.reader import make_reader
+    with open(files[-1], 'rb') as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        topics = {c.topic: summary.statistics.channel_message_counts.get(i, 0)
+                  for i, c in summary.channels.items()}
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert topics['/joint_states'] >= len(states)
+    assert topics['/torque_command'] > 0
+    assert meta['leadscrew_sim_parameters']['preset'] == 'tr12x3'
+    assert meta['leadscrew_sim_parameters']['clock_mode'] == 'realtime'
+    assert float(meta['leadscrew_sim_parameters']['backlash']) == 1e-4
+
+
+@pytest.mark.timeout(60)
+def test_joint_commands_like_topic_based_ros2_control(run_exe, ros):
+    proc = start_node(run_exe)
+    states = ros.collect(JointState, 'joint_states')
+    diags = ros.collect(DiagnosticArray, 'diagnostics', qos=10)
+    wait_states(ros, states, proc)
+    pub = command_publisher(ros, 'joint_commands', JointState)
+    start = len(states)
+    end = time.monotonic() + 0.6
+    while time.monotonic() < end:
+        pub.publish(JointState(name=['screw_joint'], effort=[-0.4]))
+        ros.spin_for(0.05)
+    assert ros.spin_until(lambda: -0.4 in [s.effort[0] for s in states[start:]], 10.0)
+    first = next(i for i in range(start, len(states)) if states[i].effort[0] == -0.4)
+    assert ros.spin_until(lambda: len(states) > first + 300, 10.0)
+    dx = states[first + 300].position[1] - states[first - 1].position[1]
+    assert abs(dx) > 1e-3 and math.copysign(1.0, dx) == nut_direction(-0.4)
+    # Malformed messages: effort length mismatch is rejected and counted,
+    # another joint's name is ignored (never applied).
+    pub.publish(JointState(name=['screw_joint'], effort=[]))
+    pub.publish(JointState(name=['other_joint'], effort=[0.9]))
+    pub.publish(JointState(name=['screw_joint'], effort=[-0.4]))
+    ros.spin_until(lambda: latest_diag(diags, 'rejected_commands') not in (None, '0'), 5.0)
+    assert latest_diag(diags, 'rejected_commands') == '1'
+    assert 0.9 not in [s.effort[0] for s in states]
+    # ~/reset restores the initial state and clears the held command.
+    res = ros.call(Trigger, f'{NODE}/reset', Trigger.Request())
+    assert res.success
+    x_init = load_preset('tr12x3').initial_position
+    assert ros.spin_until(lambda: abs(states[-1].position[1] - x_init) < 1e-4, 10.0)
+    assert states[-1].effort[0] == 0.0
+
+
+@pytest.mark.timeout(90)
+def test_realtime_rate_and_stamps(run_exe, ros, tmp_path):
+    proc = start_node(run_exe, f'record_dir:={tmp_path}', record=True)
+    raw = []
+
+    def on_raw(data):
+        raw.append((time.monotonic(), data))
+
+    ros.node.create_subscription(JointState, 'joint_states', on_raw, DEEP, raw=True)
+    wait_states(ros, raw, proc)
+    ros.spin_for(1.0)                   # settle
+    raw.clear()
+    ros.spin_for(10.0)
+    assert len(raw) > 1000
+    duration = raw[-1][0] - raw[0][0]
+    rate = (len(raw) - 1) / duration
+    stamps = [struct.unpack_from('<iI', d, 4) for _, d in raw]
+    ns = [s * 1_000_000_000 + n for s, n in stamps]
+    diffs = {b - a for a, b in zip(ns, ns[1:])}
+    print(f'rate {rate:.2f} Hz over {duration:.3f} s, {len(raw)} messages')
+    assert diffs == {MS}, sorted(diffs)[:10]
+    assert abs(rate - 1000.0) <= 10.0, rate
+
+
+@pytest.mark.timeout(60)
+def test_stepped_mode_publishes_clock(run_exe, ros):
+    proc = start_node(run_exe, 'clock_mode:=stepped', 'real_time_factor:=0.5')
+    sim = ros.add_node('sim_time_probe', [Parameter('use_sim_time', value=True)])
+    states = ros.collect(JointState, 'joint_states')
+    wait_states(ros, states, proc)
+    assert stamp_ns(states[0]) < 30 * 1_000_000_000      # sim time starts at 0
+    samples = []
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        ros.ex.spin_once(timeout_sec=0.005)
+        samples.append(sim.get_clock().now().nanoseconds)
+    ros.spin_for(0.3)
+    seen = {stamp_ns(s) for s in states}
+    samples = [s for s in samples if s > 0]
+    assert len(set(samples)) > 50
+    missing = [s for s in samples if s not in seen]
+    assert not missing, missing[:5]
+    ns = [stamp_ns(s) for s in states]
+    assert {b - a for a, b in zip(ns, ns[1:])} == {MS}
+
+
+def lockstep_run(run_exe, commands):
+    """Drive a lockstep node with commands one by one; return the states' bits."""
+    ros = Ros()
+    try:
+        proc = start_node(run_exe, 'clock_mode:=lockstep', 'preset:=stick_slip')
+        states = ros.collect(JointState, 'joint_states')
+        pub = command_publisher(ros, timeout=30.0)
+        assert ros.spin_until(lambda: ros.node.count_publishers('/joint_states') > 0, 10.0)
+        ros.spin_for(0.5)
+        assert not states                      # nothing happens without commands
+        for k, torque in enumerate(commands):
+            pub.publish(Float64(data=torque))
+            assert ros.spin_until(lambda: len(states) > k, 5.0), (k, proc.output())
+        ros.spin_for(0.2)
+        assert len(states) == len(commands)
+        out = []
+        for k, s in enumerate(states):
+            assert stamp_ns(s) == (k + 1) * MS
+            out.append(struct.pack(f'<q{6}d', stamp_ns(s), *s.position, *s.velocity,
+                                   *s.effort))
+        proc.stop()
+        return out
+    finally:
+        ros.close()
+
+
+@pytest.mark.timeout(120)
+def test_lockstep_is_bit_reproducible(run_exe):
+    commands = [0.2 * math.sin(k / 15.0) + (0.15 if (k // 40) % 2 else -0.1)
+                for k in range(200)]
+    first = lockstep_run(run_exe, commands)
+    second = lockstep_run(run_exe, commands)
+    assert first == second
+    assert len(set(first)) == len(first)
+
+
+def _param(name, value):
+    return Parameter(name, value=value).to_parameter_msg()
+
+
+@pytest.mark.timeout(90)
+def test_invalid_parameters(run_exe, ros):
+    bad = start_node(run_exe, 'backlash:=0.5')
+    assert bad.wait(timeout=30) != 0
+    out = bad.output()
+    assert 'backlash' in out and 'Traceback' not in out, out
+
+    proc = start_node(run_exe)
+    states = ros.collect(JointState, 'joint_states')
+    wait_states(ros, states, proc)
+    res = ros.call(SetParameters, f'{NODE}/set_parameters',
+                   SetParameters.Request(parameters=[_param('mu_s', -1.0)]))
+    assert not res.results[0].successful
+    assert 'mu_s' in res.results[0].reason
+    # A set the ranges accept but the model refuses: our message names it.
+    res = ros.call(SetParameters, f'{NODE}/set_parameters',
+                   SetParameters.Request(parameters=[_param('backlash', 0.005)]))
+    assert not res.results[0].successful
+    assert "parameter 'backlash'" in res.results[0].reason and 'pitch' in res.results[0].reason
+    # Read-only geometry.
+    res = ros.call(SetParameters, f'{NODE}/set_parameters',
+                   SetParameters.Request(parameters=[_param('pitch', 0.004)]))
+    assert not res.results[0].successful
+    # All or nothing.
+    res = ros.call(SetParametersAtomically, f'{NODE}/set_parameters_atomically',
+                   SetParametersAtomically.Request(parameters=[
+                       _param('mu_k', 0.1), _param('backlash', 0.01)]))
+    assert not res.result.successful and 'backlash' in res.result.reason
+
+    def get(*names):
+        r = ros.call(GetParameters, f'{NODE}/get_parameters',
+                     GetParameters.Request(names=list(names)))
+        return [v.double_value for v in r.values]
+
+    assert get('mu_k', 'backlash') == [0.15, 1e-4]
+    # A valid change goes through.
+    res = ros.call(SetParameters, f'{NODE}/set_parameters',
+                   SetParameters.Request(parameters=[_param('mu_k', 0.1)]))
+    assert res.results[0].successful, res.results[0].reason
+    assert get('mu_k') == [0.1]
+    # Still publishing.
+    n = len(states)
+    wait_states(ros, states, proc, n + 100, timeout=5.0)
+    assert proc.proc.poll() is None
+
+
+PUBLISHER = """
+import sys, time, rclpy
+from std_msgs.msg import Float64
+rclpy.init()
+n = rclpy.create_node('watchdog_commander')
+p = n.create_publisher(Float64, 'torque_command', 10)
+k = 0
+while True:
+    k += 1
+    p.publish(Float64(data=0.02 + 1e-7 * k))
+    time.sleep(0.005)
+"""
+
+
+@pytest.mark.timeout(60)
+def test_watchdog_zeroes_torque_after_command_timeout(run_exe, ros, tmp_path):
+    timeout_s = 0.5
+    proc = start_node(run_exe, f'command_timeout:={timeout_s}')
+    states = ros.collect(JointState, 'joint_states')
+    wait_states(ros, states, proc)
+    log = open(tmp_path / 'commander.log', 'wb')
+    cmd = subprocess.Popen([sys.executable, '-c', PUBLISHER], stdout=log,
+                           stderr=subprocess.STDOUT, env=dict(os.environ))
+    try:
+        assert ros.spin_until(lambda: states[-1].effort[0] > 0.0, 20.0)
+        ros.spin_for(0.5)
+        cmd.send_signal(signal.SIGKILL)
+        cmd.wait(timeout=5)
+        ros.spin_for(timeout_s + 1.0)
+    finally:
+        if cmd.poll() is None:
+            cmd.kill()
+        log.close()
+    efforts = [s.effort[0] for s in states]
+    last = max(i for i, e in enumerate(efforts) if e != 0.0)
+    value = efforts[last]
+    first_seen = next(i for i, e in enumerate(efforts) if e == value)
+    zero = next(i for i in range(first_seen, len(efforts)) if efforts[i] == 0.0)
+    gap = stamp_ns(states[zero]) - stamp_ns(states[first_seen])
+    print(f'last command seen at {stamp_ns(states[first_seen])}, zero after {gap / 1e6} ms')
+    assert timeout_s * 1e9 <= gap <= timeout_s * 1e9 + MS
+    assert all(e == 0.0 for e in efforts[zero:])
+
+
+@pytest.mark.timeout(60)
+def test_non_finite_commands_are_rejected(run_exe, ros):
+    proc = start_node(run_exe)
+    states = ros.collect(JointState, 'joint_states')
+    diags = ros.collect(DiagnosticArray, 'diagnostics', qos=10)
+    wait_states(ros, states, proc)
+    pub = command_publisher(ros)
+    fpub = command_publisher(ros, 'external_force')
+    jpub = command_publisher(ros, 'joint_commands', JointState)
+    pub.publish(Float64(data=0.01))
+    assert ros.spin_until(lambda: states[-1].effort[0] == 0.01, 5.0)
+    for _ in range(3):
+        pub.publish(Float64(data=float('nan')))
+        pub.publish(Float64(data=float('inf')))
+        fpub.publish(Float64(data=float('-inf')))
+        jpub.publish(JointState(name=['screw_joint'], effort=[float('nan')]))
+        pub.publish(Float64(data=0.01))         # keeps the watchdog fed
+        ros.spin_for(0.1)
+    assert ros.spin_until(lambda: latest_diag(diags, 'rejected_commands') == '12', 5.0), \
+        latest_diag(diags, 'rejected_commands')
+    assert proc.proc.poll() is None
+    for s in states:
+        assert all(math.isfinite(v) for v in (*s.position, *s.velocity, *s.effort))
+    assert all(s.effort[0] in (0.0, 0.01) for s in states)
+    pub.publish(Float64(data=0.01))
+    assert ros.spin_until(lambda: states[-1].effort[0] == 0.01, 5.0)
