@@ -17,10 +17,8 @@ little endian, padding bytes zero. ``rclpy.serialization.serialize_message``
 gives the same bytes except in the padding (it leaves padding bytes
 uninitialized) and possibly trailing garbage after the message;
 ``test/test_cli.py`` checks this field by field and byte by byte.
-:class:`FastSerializer` is the node's template serializer (same constructor
-and call semantics), kept here so node and tools share one module.
+The node, simulate and resim all encode through :class:`StateEncoder`.
 """
-import random
 import struct
 
 NS = 1_000_000_000
@@ -290,77 +288,3 @@ def decode_wrench_stamped(data):
     r.string()
     v = [r.f64() for _ in range(6)]
     return stamp, tuple(v[:3]), tuple(v[3:])
-
-
-# ---------------------------------------------------------------------------
-# The node's template serializer (rclpy based), shared with the node
-# ---------------------------------------------------------------------------
-
-class FastSerializer:
-    """
-    Serialize a fixed-layout message by patching a CDR template.
-
-    ``build(stamp_ns, values)`` returns the message for a stamp [ns] (or
-    None) and a tuple of float64 values. The template is made once with
-    serialize_message from sentinel values; each call then writes the stamp
-    and the doubles into a copy. The layout is checked against
-    serialize_message at construction; if anything does not match, every
-    call uses serialize_message (the slow path). rclpy is imported here, not
-    at module import.
-    """
-
-    def __init__(self, build, n_values, stamped=True):
-        """Make and verify the template."""
-        from rclpy.serialization import serialize_message
-        self._serialize = serialize_message
-        self._build = build
-        self._n = n_values
-        self._stamped = stamped
-        self.fast = False
-        try:
-            self._make_template()
-            rng = random.Random(1)
-            for _ in range(4):
-                stamp = rng.randrange(0, 2 ** 31 * NS) if stamped else None
-                vals = tuple(rng.uniform(-1e3, 1e3) for _ in range(n_values))
-                if self._pack(stamp, vals) != serialize_message(build(stamp, vals)):
-                    raise ValueError('template mismatch')
-            self.fast = True
-        except (ValueError, struct.error):
-            self.fast = False
-
-    def _make_template(self):
-        sentinels = tuple(-1.234567890123e-300 * (i + 3) for i in range(self._n))
-        sec, nsec = 0x5A3C1D2E, 0x0BADF00D
-        stamp = sec * NS + nsec if self._stamped else None
-        raw = self._serialize(self._build(stamp, sentinels))
-        if raw[:2] != b'\x00\x01':            # CDR little endian
-            raise ValueError('not CDR_LE')
-        self._offsets = []
-        for s in sentinels:
-            pat = struct.pack('<d', s)
-            if raw.count(pat) != 1:
-                raise ValueError('ambiguous template')
-            self._offsets.append(raw.find(pat))
-        self._stamp_off = None
-        if self._stamped:
-            pat = struct.pack('<iI', sec, nsec)
-            if raw.count(pat) != 1:
-                raise ValueError('ambiguous stamp')
-            self._stamp_off = raw.find(pat)
-        self._tmpl = bytearray(raw)
-
-    def _pack(self, stamp_ns, values):
-        buf = self._tmpl
-        if self._stamp_off is not None:
-            sec, nsec = divmod(stamp_ns, NS)
-            struct.pack_into('<iI', buf, self._stamp_off, sec, nsec)
-        for off, v in zip(self._offsets, values):
-            struct.pack_into('<d', buf, off, v)
-        return bytes(buf)
-
-    def __call__(self, stamp_ns, values):
-        """Return the serialized message."""
-        if self.fast:
-            return self._pack(stamp_ns, values)
-        return self._serialize(self._build(stamp_ns, values))

@@ -27,7 +27,6 @@ import ctypes.util
 import json
 import math
 import os
-import random
 import signal
 import struct
 import sys
@@ -49,6 +48,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from . import geometry
+from .messages import StateEncoder
 from .model import LeadScrewModel
 from .params import load_preset, ParameterError, ScrewParams
 
@@ -170,73 +170,6 @@ def percentiles(values, qs=(50, 99)):
 # ---------------------------------------------------------------------------
 # Serialisation
 # ---------------------------------------------------------------------------
-
-class FastSerializer:
-    """
-    Serialize a fixed-layout message by patching a CDR template.
-
-    ``build(stamp_ns, values)`` returns the message for a stamp [ns] (or
-    None) and a tuple of float64 values. The template is made once with
-    serialize_message from sentinel values; each call then writes the stamp
-    and the doubles into a copy. The layout is checked against
-    serialize_message at construction; if anything does not match, every
-    call uses serialize_message (the slow path).
-    """
-
-    def __init__(self, build, n_values, stamped=True):
-        """Make and verify the template."""
-        self._build = build
-        self._n = n_values
-        self._stamped = stamped
-        self.fast = False
-        try:
-            self._make_template()
-            rng = random.Random(1)
-            for _ in range(4):
-                stamp = rng.randrange(0, 2 ** 31 * NS) if stamped else None
-                vals = tuple(rng.uniform(-1e3, 1e3) for _ in range(n_values))
-                if self._pack(stamp, vals) != serialize_message(build(stamp, vals)):
-                    raise ValueError('template mismatch')
-            self.fast = True
-        except (ValueError, struct.error):
-            self.fast = False
-
-    def _make_template(self):
-        sentinels = tuple(-1.234567890123e-300 * (i + 3) for i in range(self._n))
-        sec, nsec = 0x5A3C1D2E, 0x0BADF00D
-        stamp = sec * NS + nsec if self._stamped else None
-        raw = serialize_message(self._build(stamp, sentinels))
-        if raw[:2] != b'\x00\x01':            # CDR little endian
-            raise ValueError('not CDR_LE')
-        self._offsets = []
-        for s in sentinels:
-            pat = struct.pack('<d', s)
-            if raw.count(pat) != 1:
-                raise ValueError('ambiguous template')
-            self._offsets.append(raw.find(pat))
-        self._stamp_off = None
-        if self._stamped:
-            pat = struct.pack('<iI', sec, nsec)
-            if raw.count(pat) != 1:
-                raise ValueError('ambiguous stamp')
-            self._stamp_off = raw.find(pat)
-        self._tmpl = bytearray(raw)
-
-    def _pack(self, stamp_ns, values):
-        buf = self._tmpl
-        if self._stamp_off is not None:
-            sec, nsec = divmod(stamp_ns, NS)
-            struct.pack_into('<iI', buf, self._stamp_off, sec, nsec)
-        for off, v in zip(self._offsets, values):
-            struct.pack_into('<d', buf, off, v)
-        return bytes(buf)
-
-    def __call__(self, stamp_ns, values):
-        """Return the serialized message."""
-        if self.fast:
-            return self._pack(stamp_ns, values)
-        return serialize_message(self._build(stamp_ns, values))
-
 
 def stamp_msg(stamp_ns):
     """builtin_interfaces/Time of an integer nanosecond time."""
@@ -738,29 +671,11 @@ class LeadScrewSimNode(Node):
         self._pace_reset = True
 
     def _make_serializers(self):
-        prefix = self.cfg['joint_prefix']
-        names = [prefix + 'screw_joint', prefix + 'nut_joint']
-
-        def js(stamp, v):
-            m = JointState()
-            m.header.stamp = stamp_msg(stamp)
-            m.name = names
-            m.position = [v[0], v[1]]
-            m.velocity = [v[2], v[3]]
-            m.effort = [v[4], v[5]]
-            return m
-
-        def wrench(stamp, v):
-            m = WrenchStamped()
-            m.header.stamp = stamp_msg(stamp)
-            m.wrench.force.x = v[0]
-            m.wrench.torque.x = v[1]
-            return m
-
-        self._ser_js = FastSerializer(js, 6)
-        self._ser_x = FastSerializer(lambda _s, v: Float64(data=v[0]), 1, stamped=False)
-        self._ser_wr = FastSerializer(wrench, 2)
-        self._ser_clock = FastSerializer(lambda s, _v: Clock(clock=stamp_msg(s)), 0)
+        enc = StateEncoder(self.cfg['joint_prefix'])
+        self._ser_js = enc.joint_states
+        self._ser_x = enc.nut_position
+        self._ser_wr = enc.thread_force
+        self._ser_clock = enc.clock
 
     def recording_channels(self):
         """Return {resolved topic: (type name, offered QoS yaml)} of the recorded topics."""

@@ -135,27 +135,6 @@ def test_state_encoder_matches_rclpy(prefix):
             stamp, names, tuple(v[0:2]), tuple(v[2:4]), tuple(v[4:6]))
 
 
-def test_fast_serializer_agrees_with_state_encoder():
-    """The node's template serializer (kept in messages) and StateEncoder give the same fields."""
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import JointState
-    names = ['screw_joint', 'nut_joint']
-
-    def build(stamp, v):
-        m = JointState(name=names, position=[v[0], v[1]], velocity=[v[2], v[3]],
-                       effort=[v[4], v[5]])
-        m.header.stamp.sec, m.header.stamp.nanosec = divmod(stamp, NS)
-        return m
-
-    fast = M.FastSerializer(build, 6)
-    enc = M.StateEncoder()
-    v = (1.5, -2.0, 3.25, 4.0, -5.0, 6.0)
-    a = deserialize_message(fast(123 * NS + 9, v), JointState)
-    b = deserialize_message(enc.joint_states(123 * NS + 9, v), JointState)
-    assert (list(a.position), list(a.velocity), list(a.effort), list(a.name)) == \
-        (list(b.position), list(b.velocity), list(b.effort), list(b.name))
-
-
 # ---------------------------------------------------------------------------
 # simulate
 # ---------------------------------------------------------------------------
