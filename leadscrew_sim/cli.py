@@ -25,6 +25,7 @@ import bisect
 import math
 import os
 from pathlib import Path
+import struct
 import sys
 import time
 
@@ -504,7 +505,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         s = t_ns + dt_ns
         x, v = o.nut_position, o.nut_velocity
         vm = vm_scale * o.motor_velocity
-        js = (o.screw_angle, x, o.screw_velocity, v, o.motor_torque, o.axial_force)
+        # + 0.0: a zero motor torque is +0.0, as the node publishes it
+        js = (o.screw_angle, x, o.screw_velocity, v, o.motor_torque + 0.0, o.axial_force)
         write(c_js, ser_js(s, js), s)
         write(c_x, ser_x(None, (x,)), s)
         write(c_wr, ser_wr(s, (o.axial_force, o.thread_torque)), s)
@@ -616,6 +618,11 @@ class Resim:
     node's rule); torque commands older than ``command_timeout`` (sim time)
     become 0 as in the node's stepped and lockstep modes. States are produced
     at ``t0 + (k + 1) dt`` every ``publish_decimation`` steps.
+
+    A reset or parameter update logged at the same time as messages takes its
+    place among them from ``messages_at_log_time`` (the number of messages of
+    that log time the node recorded before it; the file order of the messages
+    is their recording order). Without that key it comes after them.
     """
 
     def __init__(self, rec, phys_overrides=None):
@@ -642,20 +649,34 @@ class Resim:
         self.events = []            # (log_time, kind, payload) in log-time order
         self.states = {}            # step index -> dict(rel -> bytes)
         last_state = -1
+        order = []                  # sort keys of the events: (log time, rank)
+        same_t, rank = None, 0      # rank: index among the messages of one log time
         for log_time, topic, data in rec.messages:
+            if log_time != same_t:
+                same_t, rank = log_time, 0
+            rank += 1
             rel = by_topic.get(topic)
             if rel in M.COMMAND_TOPICS:
                 self.events.append((log_time, rel, data))
+                order.append((log_time, rank))
             elif rel in M.STATE_TOPICS:
                 k, r = divmod(log_time - self.t0, self.dt_ns)
                 if r == 0 and k > 0:
                     self.states.setdefault(k, {})[rel] = data
                     last_state = max(last_state, k)
-        extra = []
         for name, data in rec.metadata:
             if name in (UPDATE_RECORD, RESET_RECORD) and 'log_time_ns' in data:
-                extra.append((int(data['log_time_ns']), name, data))
-        self.events = sorted(self.events + extra, key=lambda e: e[0])
+                try:
+                    log_time = int(data['log_time_ns'])
+                    before = int(data.get('messages_at_log_time', -1))
+                except ValueError as exc:
+                    raise CliError(f'{rec.path}: bad "{name}" metadata record: '
+                                   f'{exc}') from None
+                self.events.append((log_time, name, data))
+                # after the first `before` messages of its log time; else after all
+                order.append((log_time, before + 0.5 if before >= 0 else math.inf))
+        index = sorted(range(len(self.events)), key=order.__getitem__)
+        self.events = [self.events[i] for i in index]
         if last_state < 0:
             last_cmd = max([(e[0] - self.t0) // self.dt_ns for e in self.events] or [-1])
             last_state = last_cmd + 1
@@ -725,7 +746,7 @@ class Resim:
                 raise CliError(f'simulation fault at step {k}: {exc}') from None
             if (k + 1) % dec == 0 or keep:
                 o = model.output()
-                js, x, wr = M.StateEncoder.values(o)
+                js, x, wr = node_values(o)
                 if (k + 1) % dec == 0:
                     new_states[k + 1] = (js, x[0], wr)
                     if writer is not None:
@@ -742,12 +763,17 @@ class Resim:
         return new_states, outs, model
 
     def compare(self, new_states):
-        """Return rows (topic, field, max |diff|, rms diff, n) of new vs recorded states."""
+        """
+        Return rows (topic, field, max |diff|, rms diff, n) of new vs recorded states.
+
+        Also sets ``bit_differences``: the number of compared values whose IEEE 754
+        bits differ (a zero difference can hide -0.0 against +0.0).
+        """
         fields = [('joint_states', f'{q}[{j}]') for q in ('position', 'velocity', 'effort')
                   for j in self.joint_labels()] + [('nut_position', 'data'),
                                                    ('thread_force', 'force.x'),
                                                    ('thread_force', 'torque.x')]
-        acc = {f: [0.0, 0.0, 0] for f in fields}
+        acc = {f: [0.0, 0.0, 0, 0] for f in fields}
         for k, rec in self.states.items():
             new = new_states.get(k)
             if new is None:
@@ -757,15 +783,16 @@ class Resim:
                 _s, _n, pos, vel, eff = M.decode_joint_state(rec['joint_states'])
                 old = list(pos[:2]) + list(vel[:2]) + list(eff[:2])
                 for i, (field, val) in enumerate(zip(fields[:6], old)):
-                    _acc(acc[field], val - js[i])
+                    _acc(acc[field], val, js[i])
             if 'nut_position' in rec:
-                _acc(acc[fields[6]], M.decode_float64(rec['nut_position']) - x)
+                _acc(acc[fields[6]], M.decode_float64(rec['nut_position']), x)
             if 'thread_force' in rec:
                 _s, f, t = M.decode_wrench_stamped(rec['thread_force'])
-                _acc(acc[fields[7]], f[0] - wr[0])
-                _acc(acc[fields[8]], t[0] - wr[1])
+                _acc(acc[fields[7]], f[0], wr[0])
+                _acc(acc[fields[8]], t[0], wr[1])
         rows = []
-        for (topic, field), (mx, sq, n) in acc.items():
+        self.bit_differences = sum(a[3] for a in acc.values())
+        for (topic, field), (mx, sq, n, _bits) in acc.items():
             rows.append((self.topics.get(topic) or topic, field, mx,
                          math.sqrt(sq / n) if n else float('nan'), n))
         return rows
@@ -775,12 +802,28 @@ class Resim:
         return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
 
 
-def _acc(a, d):
+def node_values(o):
+    """
+    Return StateEncoder.values(o) as the node publishes them.
+
+    The node sends ``motor_torque + 0.0`` (a zero motor torque is +0.0, never -0.0).
+    """
+    js, x, wr = M.StateEncoder.values(o)
+    return js[:4] + (js[4] + 0.0, js[5]), x, wr
+
+
+_BITS = struct.Struct('<d').pack
+
+
+def _acc(a, old, new):
+    d = old - new
     d = abs(d) if d == d else math.inf
     if d > a[0]:
         a[0] = d
     a[1] += d * d
     a[2] += 1
+    if d or _BITS(old) != _BITS(new):
+        a[3] += 1
 
 
 def cmd_resim(args):
@@ -823,8 +866,11 @@ def cmd_resim(args):
         if n:
             overall = max(overall, float(mx))
     compared = sum(1 for k in sim.states if k in new_states)
-    print(f'compared {compared} recorded ticks; overall max |diff|: {overall!r}'
-          + (' (bit-identical)' if compared and overall == 0.0 else ''))
+    note = ''
+    if compared and overall == 0.0:
+        note = (' (bit-identical)' if not sim.bit_differences else
+                f' (equal values, but {sim.bit_differences} differ in their bits: -0.0/+0.0)')
+    print(f'compared {compared} recorded ticks; overall max |diff|: {overall!r}{note}')
     return 0
 
 

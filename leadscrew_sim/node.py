@@ -49,8 +49,9 @@ from std_srvs.srv import SetBool, Trigger
 
 from . import geometry
 from .messages import StateEncoder
-from .model import LeadScrewModel
+from .model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
 from .params import load_preset, ParameterError, ScrewParams
+from .recording import PREFIX_RE
 
 NODE_NAME = 'leadscrew_sim_node'
 DEFAULT_PRESET = 'tr12x3'
@@ -60,6 +61,12 @@ CLOCK_MODES = ('realtime', 'stepped', 'lockstep')
 READ_ONLY_PHYSICS = frozenset((
     'thread_form', 'hand', 'major_diameter', 'pitch', 'starts', 'pitch_diameter',
     'anti_backlash', 'initial_position'))
+
+#: Smallest non-zero file split (a smaller one starts a file for every few messages).
+MIN_SPLIT_BYTES = 1 << 16
+MIN_SPLIT_SECONDS = 1.0
+#: Longest joint_prefix [characters]: the joint names go out in every joint_states.
+MAX_JOINT_PREFIX = 128
 
 #: Node parameters besides the physics: name -> (default, unit, description, lo, hi,
 #: read_only, choices).
@@ -82,17 +89,18 @@ NODE_PARAMETERS = {
                            1, 100000, False, None),
     'record': (True, '-', 'record commands and states to an MCAP file', None, None, False,
                None),
-    'record_dir': ('runs', '-', 'directory of the MCAP recordings', None, None, False, None),
-    'record_prefix': ('leadscrew', '-', 'file name prefix of the recordings', None, None,
-                      False, None),
-    'record_split_bytes': (0, 'B', 'start a new file after this many bytes; 0 never',
-                           0, 2 ** 62, False, None),
-    'record_split_seconds': (0.0, 's', 'start a new file after this long; 0 never',
-                             0.0, 1e9, False, None),
+    'record_dir': ('runs', '-', 'directory of the MCAP recordings (start-up only: a '
+                   'run-time change could point the writes anywhere)', None, None, True, None),
+    'record_prefix': ('leadscrew', '-', 'file name prefix of the recordings: 1 to 64 '
+                      'letters, digits, _ or -', None, None, False, None),
+    'record_split_bytes': (0, 'B', f'start a new file after this many bytes; 0 never, else '
+                           f'at least {MIN_SPLIT_BYTES}', 0, 2 ** 62, False, None),
+    'record_split_seconds': (0.0, 's', f'start a new file after this long; 0 never, else at '
+                             f'least {MIN_SPLIT_SECONDS:g} s', 0.0, 1e9, False, None),
     'record_flush_interval': (1.0, 's', 'flush the recording at least this often (bounds the '
                               'loss on a crash)', 0.0, 3600.0, False, None),
-    'stats_file': ('', '-', 'if set, write timing statistics (JSON) to this path at shutdown',
-                   None, None, False, None),
+    'stats_file': ('', '-', 'if set, write timing statistics (JSON) to this path at shutdown '
+                   '(start-up only)', None, None, True, None),
 }
 
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -103,6 +111,9 @@ STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        durability=DurabilityPolicy.VOLATILE)
 
 NS = 1_000_000_000
+
+#: Largest |external_force| command [N] taken: the range of the parameter of the same name.
+EXTERNAL_FORCE_LIMIT = ScrewParams.field_info()['external_force'][2]['hi']
 
 
 class StartupError(Exception):
@@ -171,6 +182,25 @@ def percentiles(values, qs=(50, 99)):
 # Serialisation
 # ---------------------------------------------------------------------------
 
+#: std_msgs/Float64 CDR: encapsulation id (CDR / XCDR2, big / little endian) -> decoder
+#: of the double at offset 4.
+_F64_CDR = {b'\x00\x00': struct.Struct('>d'), b'\x00\x01': struct.Struct('<d'),
+            b'\x00\x06': struct.Struct('>d'), b'\x00\x07': struct.Struct('<d')}
+
+
+def float64_value(data):
+    """
+    Return the value of a serialized std_msgs/Float64 (raw subscription bytes).
+
+    Decodes the CDR directly (about 1 us instead of 10 us for
+    deserialize_message), falling back to rclpy for any other encapsulation.
+    """
+    codec = _F64_CDR.get(bytes(data[:2])) if len(data) >= 12 else None
+    if codec is None:
+        return deserialize_message(data, Float64).data
+    return codec.unpack_from(data, 4)[0]
+
+
 def stamp_msg(stamp_ns):
     """builtin_interfaces/Time of an integer nanosecond time."""
     sec, nsec = divmod(int(stamp_ns), NS)
@@ -194,6 +224,11 @@ class Recorder:
     and SIGTERM so a Ctrl-C to the process group cannot cut a write short.
     Errors never raise into the simulation loop; they are kept in ``error``
     and shown in diagnostics.
+
+    A metadata record with a ``log_time_ns`` key (reset, parameter update) also
+    gets ``messages_at_log_time``: the number of messages with that log time
+    recorded before it, so a reader can tell whether, e.g., a reset came before
+    or after a command logged in the same tick (``leadscrew_sim resim``).
     """
 
     MAX_PENDING = 64 << 20          # bytes buffered in the node before dropping
@@ -210,6 +245,8 @@ class Recorder:
         self._finishing = []
         self.error = None
         self.dropped = 0
+        self._at_time = None            # log time of the last message queued
+        self._at_count = 0              # messages queued with that log time
 
     @property
     def active(self):
@@ -223,6 +260,7 @@ class Recorder:
         self.error = None
         self._status = {}
         self.dropped = 0
+        self._at_time, self._at_count = None, 0
         config = dict(directory=str(directory), prefix=prefix, split_bytes=int(split_bytes),
                       split_seconds=float(split_seconds),
                       flush_interval=float(flush_interval),
@@ -264,12 +302,19 @@ class Recorder:
             return
         self._buf += _FRAME.pack(self._channels[topic], len(data), log_time_ns)
         self._buf += data
+        if log_time_ns == self._at_time:
+            self._at_count += 1
+        else:
+            self._at_time, self._at_count = log_time_ns, 1
 
     def add_metadata(self, name, values):
         """Queue a metadata record (no-op when not recording)."""
         if self._fd is not None:
-            self._control({'op': 'metadata', 'name': name,
-                           'data': {str(k): str(v) for k, v in values.items()}})
+            data = {str(k): str(v) for k, v in values.items()}
+            if 'log_time_ns' in values:
+                same = int(values['log_time_ns']) == self._at_time
+                data['messages_at_log_time'] = str(self._at_count if same else 0)
+            self._control({'op': 'metadata', 'name': name, 'data': data})
 
     def flush(self):
         """Hand the queued bytes to the pipe without blocking (once per tick)."""
@@ -470,7 +515,31 @@ def _coerce_node_param(name, value, default, lo, hi, choices):
         raise ParameterError(name, f'{value!r} is not one of {", ".join(choices)}')
     if lo is not None and not lo <= value <= hi:
         raise ParameterError(name, f'{value!r} is outside the allowed range [{lo}, {hi}]')
+    _check_node_param(name, value)
     return value
+
+
+def _check_node_param(name, value):
+    """Check the rules of a node parameter beyond its type and range."""
+    shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:77] + '...'
+    if name == 'record_prefix' and not PREFIX_RE.match(value):
+        raise ParameterError(name, f'{shown} must be 1 to 64 letters, digits, _ or - '
+                             '(it starts the file names: no paths)')
+    if name in ('record_dir', 'stats_file', 'joint_prefix') and any(
+            ord(c) < 32 or ord(c) == 127 for c in value):
+        raise ParameterError(name, f'{shown} contains control characters')
+    if name == 'record_dir' and not value:
+        raise ParameterError(name, 'must not be empty')
+    if name == 'joint_prefix' and (len(value) > MAX_JOINT_PREFIX
+                                   or any(c.isspace() for c in value)):
+        raise ParameterError(name, f'{shown} must be at most {MAX_JOINT_PREFIX} characters '
+                             'without spaces')
+    if name == 'record_split_bytes' and 0 < value < MIN_SPLIT_BYTES:
+        raise ParameterError(name, f'{value} B would start a new file every few messages: '
+                             f'give 0 (never) or at least {MIN_SPLIT_BYTES} B')
+    if name == 'record_split_seconds' and 0.0 < value < MIN_SPLIT_SECONDS:
+        raise ParameterError(name, f'{value!r} s would start many files a second: give 0 '
+                             f'(never) or at least {MIN_SPLIT_SECONDS:g} s')
 
 
 def _descriptor(name, value, unit, desc, lo, hi, read_only, choices):
@@ -498,7 +567,8 @@ class LeadScrewSimNode(Node):
         self._running = True
         self._declare_all()
         self.dt_ns = int(round(NS / self.cfg['update_rate']))
-        self.model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
+        self._spin_budget_ns = max(100_000, self.dt_ns // 4)
+        self.model = self._make_model()
         LeadScrewModel(self.params, dt=self.dt_ns / NS).advance(0.0)   # JIT warm-up
         self.mode = self.cfg['clock_mode']
         self.t0_ns = self.get_clock().now().nanoseconds if self.mode == 'realtime' else 0
@@ -511,7 +581,8 @@ class LeadScrewSimNode(Node):
         self.cmd_wall = None               # monotonic time of the last torque command
         self.tick_time = 0                 # time base of command ages (see _now_for_age)
         self.stale = False
-        self.rejected = 0
+        self.rejected = 0                  # malformed or non-finite commands
+        self.ignored = 0                   # joint_commands without our joint
         self.commands = 0
         self._warned_no_joint = False
         self._events = 0
@@ -541,6 +612,21 @@ class LeadScrewSimNode(Node):
             f'{"self-locking" if p.self_locking else "back-drivable"}; '
             f'{self.cfg["update_rate"]:g} Hz, {self.model.nsub} substeps/step, '
             f'clock_mode {self.mode}')
+
+    def _make_model(self):
+        """Build the model; a set needing too many substeps per step is a StartupError."""
+        dt = self.dt_ns / NS
+        try:
+            return LeadScrewModel(self.params, dt=dt)
+        except ParameterError as exc:
+            p = self.params
+            if p.substep > 0.0 and dt / p.substep > MAX_SUBSTEPS_PER_STEP:
+                raise StartupError(
+                    f"parameter 'substep': {p.substep:g} s gives "
+                    f'{math.ceil(dt / p.substep)} substeps per {dt:g} s step (limit '
+                    f'{MAX_SUBSTEPS_PER_STEP}); raise it (0: automatic) or update_rate'
+                ) from None
+            raise StartupError(f'{exc} (update_rate {self.cfg["update_rate"]:g} Hz)') from None
 
     # -- parameters --------------------------------------------------------
     def _override(self, name):
@@ -710,7 +796,8 @@ class LeadScrewSimNode(Node):
 
     def _set_torque(self, value):
         self.torque = value
-        self.cmd_time = self.tick_time
+        # lockstep: the command arrives before its tick, at the current sim time
+        self.cmd_time = self._sim_now() if self.mode == 'lockstep' else self.tick_time
         self.cmd_wall = time.monotonic_ns()
         self.commands += 1
         if self.stale:
@@ -720,7 +807,7 @@ class LeadScrewSimNode(Node):
     def _on_torque(self, data):
         self._events += 1
         self._record_cmd(self._topic_name('torque_command'), data)
-        value = deserialize_message(data, Float64).data
+        value = float64_value(data)
         if math.isfinite(value):
             self._set_torque(value)
         else:
@@ -733,33 +820,38 @@ class LeadScrewSimNode(Node):
         self._record_cmd(self._topic_name('joint_commands'), data)
         msg = deserialize_message(data, JointState)
         joint = self.cfg['joint_prefix'] + 'screw_joint'
-        try:
-            i = msg.name.index(joint)
-        except ValueError:
-            i = None
+        count = msg.name.count(joint)
+        if count == 0:
+            self.ignored += 1
             if not self._warned_no_joint:
                 self._warned_no_joint = True
                 self.get_logger().warn(f'joint_commands without joint {joint!r} ignored '
-                                       f'(names {list(msg.name)}); warning once')
-        if i is not None:
-            if len(msg.effort) != len(msg.name):
-                self._reject(f'joint_commands with {len(msg.effort)} efforts for '
-                             f'{len(msg.name)} names')
-            elif not math.isfinite(msg.effort[i]):
-                self._reject(f'non-finite joint_commands effort {msg.effort[i]!r}')
+                                       f'(names {list(msg.name)[:8]}); warning once')
+        elif count > 1:
+            self._reject(f'joint_commands naming {joint!r} {count} times')
+        elif len(msg.effort) != len(msg.name):
+            self._reject(f'joint_commands with {len(msg.effort)} efforts for '
+                         f'{len(msg.name)} names')
+        else:
+            value = float(msg.effort[msg.name.index(joint)])
+            if math.isfinite(value):
+                self._set_torque(value)
             else:
-                self._set_torque(float(msg.effort[i]))
+                self._reject(f'non-finite joint_commands effort {value!r}')
         if self.mode == 'lockstep':
             self._lockstep_tick()
 
     def _on_force(self, data):
         self._events += 1
         self._record_cmd(self._topic_name('external_force'), data)
-        value = deserialize_message(data, Float64).data
-        if math.isfinite(value):
+        value = float64_value(data)
+        if abs(value) <= EXTERNAL_FORCE_LIMIT:
             self.force = value
         else:
-            self._reject(f'non-finite external_force {value!r}')
+            # A finite but huge force (1e308 N) would drive the state to Inf and
+            # stop the integration: refuse what the parameter range refuses.
+            self._reject(f'external_force {value!r} N outside '
+                         f'[-{EXTERNAL_FORCE_LIMIT:g}, {EXTERNAL_FORCE_LIMIT:g}] N')
 
     def _topic_name(self, rel):
         cache = self.__dict__.setdefault('_topic_names', {})
@@ -864,12 +956,19 @@ class LeadScrewSimNode(Node):
         self._run_end = time.monotonic_ns()
 
     def _spin(self):
-        """Process the pending events: one spin_once, again while commands keep coming."""
+        """
+        Process the pending events: one spin_once, again while commands keep coming.
+
+        At most 16 events and about a quarter of a period per tick: a command
+        flood (tens of thousands per second from another process) then delays
+        commands (the latest one wins anyway) instead of starving the loop.
+        """
         ex = self._executor
+        end = time.monotonic_ns() + self._spin_budget_ns
         for _ in range(16):
             before = self._events
             ex.spin_once(timeout_sec=0)
-            if self._events == before:
+            if self._events == before or time.monotonic_ns() >= end:
                 break
 
     def _run_realtime(self):
@@ -949,7 +1048,8 @@ class LeadScrewSimNode(Node):
             lateness_max_ns=pct['max'], lateness_samples=len(lat),
             overruns=self.overruns, skipped_steps=self.skipped_steps,
             late_ticks=self.late_ticks, catchup_steps=self.catchup_steps,
-            rejected_commands=self.rejected, commands=self.commands,
+            rejected_commands=self.rejected, ignored_commands=self.ignored,
+            commands=self.commands,
             fault=self.model.fault)
 
     def _publish_diagnostics(self, now):
@@ -992,6 +1092,7 @@ class LeadScrewSimNode(Node):
             ('overruns', str(self.overruns)), ('skipped_steps', str(self.skipped_steps)),
             ('late_ticks', str(self.late_ticks)), ('catchup_steps', str(self.catchup_steps)),
             ('commands', str(self.commands)), ('rejected_commands', str(self.rejected)),
+            ('ignored_commands', str(self.ignored)),
             ('substeps', str(m.nsub)),
             ('recording', str(self.recorder.active)), ('recording_file', rec_file),
             ('recording_bytes', str(rec_bytes)), ('recording_messages', str(rec_msgs)),
@@ -1040,6 +1141,17 @@ def main(args=None):
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
         return 2
     node = None
+    stop_early = []
+
+    def on_signal(_signum, _frame):
+        if node is not None:
+            node.stop()
+        stop_early.append(True)
+
+    # Before the node exists: a Ctrl-C during start-up (numba, DDS discovery
+    # can take seconds) ends the node cleanly instead of with a traceback.
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     try:
         try:
             node = LeadScrewSimNode()
@@ -1051,12 +1163,8 @@ def main(args=None):
                 rclpy.exceptions.ParameterException) as exc:
             print(f'{NODE_NAME}: error: {exc}', file=sys.stderr, flush=True)
             return 2
-
-        def on_signal(_signum, _frame):
+        if stop_early:
             node.stop()
-
-        signal.signal(signal.SIGINT, on_signal)
-        signal.signal(signal.SIGTERM, on_signal)
         executor = make_executor()
         executor.add_node(node)
         node.run(executor)
