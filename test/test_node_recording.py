@@ -17,18 +17,15 @@ import struct
 import subprocess
 import sys
 import time
-import uuid
 
 from conftest import NodeProcess
+from test_node import Ros, stamp_ns
 from leadscrew_sim.msgdefs import ros2msg_definition
 from leadscrew_sim.params import load_preset, ScrewParams
 from leadscrew_sim.recording import recover
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
@@ -61,11 +58,6 @@ FLUSH = 0.5
 MARGIN = 0.5
 
 
-def stamp_ns(msg):
-    """Return header.stamp in integer nanoseconds."""
-    return msg.header.stamp.sec * NS + msg.header.stamp.nanosec
-
-
 def js_key(msg):
     """Return (stamp, names, position, velocity, effort) of any decoded JointState."""
     return (stamp_ns(msg), tuple(msg.name), tuple(float(v) for v in msg.position),
@@ -77,29 +69,8 @@ def bits(values):
     return tuple(struct.pack('<d', v) for v in values)
 
 
-class Live:
-    """A test-side rclpy node on its own context, spun explicitly."""
-
-    def __init__(self):
-        """Create the context, the node and an executor."""
-        self.ctx = Context()
-        rclpy.init(context=self.ctx)
-        self.node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=self.ctx)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-
-    def spin_for(self, seconds):
-        """Spin for a while."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def spin_until(self, pred, timeout):
-        """Spin until pred() is true or timeout; return pred()."""
-        end = time.monotonic() + timeout
-        while not pred() and time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=0.005)
-        return pred()
+class Live(Ros):
+    """The test_node Ros helper plus joint_states capture with receive times."""
 
     def states(self):
         """Subscribe to joint_states; return the list of (receive time.time_ns(), msg)."""
@@ -113,12 +84,6 @@ class Live:
         pub = self.node.create_publisher(msg_type, topic, 10)
         assert self.spin_until(lambda: pub.get_subscription_count() > 0, timeout), topic
         return pub
-
-    def close(self):
-        """Destroy everything."""
-        self.ex.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 @pytest.fixture
