@@ -269,7 +269,17 @@ def test_flood_of_commands_does_not_starve_the_loop(run_exe, ros, tmp_path):
           f'{diag_values(diags[-1])["skipped_steps"]}')
     assert window > 0.5, 'flood too short to measure'
     assert kept >= FLOOD_KEPT, kept
-    assert gaps == {int(NS / rate)}, sorted(gaps)[:10]
+    # Stamps step by whole periods. A gap wider than one period is a skip the
+    # node declared (an overrun: its thread was descheduled for more than
+    # max_catchup_steps periods on this shared machine) and counted in
+    # skipped_steps; nothing else may go missing between node and subscriber.
+    period_ns = int(NS / rate)
+    assert all(g > 0 and g % period_ns == 0 for g in gaps), sorted(gaps)[:10]
+    missing = sum((b - a) // period_ns - 1 for a, b in zip(stamps, stamps[1:]))
+    # skipped_steps counts from start-up, so it bounds the skips seen here.
+    assert ros.spin_until(lambda: stamp_ns(diags[-1]) >= stamps[-1], 5.0)
+    skipped = int(diag_values(diags[-1])['skipped_steps'])
+    assert missing <= skipped, (missing, skipped)
     assert all(finite_state(m) for m in msgs)
     # Alive and responsive afterwards: no backlog of stale command events.
     assert proc.proc.poll() is None
