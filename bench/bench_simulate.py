@@ -39,6 +39,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--seconds', type=float, default=60.0)
     ap.add_argument('--profile', action='store_true')
+    ap.add_argument('--sort', default='tottime', help='cProfile sort key for --profile')
     a = ap.parse_args()
     rate, amp, freq = 1000.0, 0.05, 0.5
     bare = bare_loop(a.seconds, rate, amp, freq)
@@ -64,7 +65,7 @@ def main():
     print(f'file size       : {size} B = {size / a.seconds:.0f} B per simulated second')
     if prof:
         s = io.StringIO()
-        pstats.Stats(prof, stream=s).sort_stats('tottime').print_stats(15)
+        pstats.Stats(prof, stream=s).sort_stats(a.sort).print_stats(25)
         print(s.getvalue())
 
 

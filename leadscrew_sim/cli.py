@@ -29,6 +29,8 @@ import struct
 import sys
 import time
 
+import numpy as np
+
 from . import messages as M
 from .params import (load_preset, ParameterError, physics_subset, read_parameter_file,
                      ScrewParams)
@@ -74,10 +76,10 @@ class _Parser(argparse.ArgumentParser):
 
 def _parse_scalar(text):
     """Parse a --set value as a YAML scalar; '1e-4' counts as a number."""
-    import yaml
+    from . import yamlio
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
+        value = yamlio.load(text)
+    except yamlio.YAMLError:
         value = text
     if isinstance(value, str):
         try:
@@ -285,8 +287,9 @@ def make_torque_source(args, params):
             raise CliError(f'--target {target} m lies outside the stroke '
                            f'[{params.stroke_min}, {params.stroke_max}] m')
         ctl = MoveController(params, target, args.speed)
-        return (lambda k, t, x, v: ctl(t, x, v)), (f'profile=move target={target} '
-                                                   f'speed={args.speed}')
+        fn = (lambda k, t, x, v: ctl(t, x, v))
+        fn.needs_state = True           # closed loop: simulate steps tick by tick
+        return fn, f'profile=move target={target} speed={args.speed}'
     amp = 0.5 * params.max_torque if amp is None else amp
     _finite('--amplitude', amp)
     f = args.frequency
@@ -466,62 +469,120 @@ def cmd_simulate(args):
     return 0
 
 
+#: Ticks per block of simulate: the model runs a block in one compiled call
+#: (open-loop inputs) and the block's messages are encoded and recorded at once.
+BLOCK_TICKS = 1000
+
+
 def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock=False):
-    """Advance n_steps, writing command and states per tick; return a few statistics."""
-    write, ids, enc = w.write, w.ids, w.enc
-    c_tq, c_f = ids['torque_command'], ids['external_force']
-    c_js, c_x, c_wr = ids['joint_states'], ids['nut_position'], ids['thread_force']
-    c_clk = ids.get('/clock')
-    f64 = M.encode_float64
-    ser_js, ser_x, ser_wr, ser_clk = enc.joint_states, enc.nut_position, enc.thread_force, \
-        enc.clock
-    advance, output = model.advance, model.output
+    """
+    Advance n_steps, recording command and states per tick; return a few statistics.
+
+    Blocks of :data:`BLOCK_TICKS` ticks: open-loop torque inputs (functions of
+    time only) run through ``model.run`` in one compiled call, the closed-loop
+    ``move`` profile tick by tick; both give the same bits as ``model.advance``
+    per tick. The file holds, per tick k at t_k = k dt: torque_command (and
+    external_force when it changes) at t_k, then the states at t_k + dt.
+    """
     dt = dt_ns / NS
-    force = 0.0
-    x = v = 0.0
-    o = output()
-    x, v = o.nut_position, o.nut_velocity
+    needs_state = getattr(torque_fn, 'needs_state', False)
+    o = model.output()
+    x, vm = o.nut_position, 0.0
     vm_scale = model.params.hand_sign * model.params.lead / (2.0 * math.pi)
-    vm = 0.0
-    x_min = x_max = x
-    tq_max = 0.0
-    for k in range(n_steps):
-        t_ns = k * dt_ns
-        t = k * dt
-        tq = float(torque_fn(k, t, x, vm))
-        if not math.isfinite(tq):
-            raise CliError(f'torque input is not finite at t={t:.6f} s')
-        write(c_tq, f64(tq), t_ns)
-        if force_fn is not None:
-            f = float(force_fn(t))
-            if f != force or k == 0:
-                force = f
-                write(c_f, f64(f), t_ns)
+    stats = dict(x_min=x, x_max=x, x_end=x, tq_max=0.0)
+    force = 0.0
+    for k0 in range(0, n_steps, BLOCK_TICKS):
+        ks = range(k0, min(n_steps, k0 + BLOCK_TICKS))
+        forces, changes = [], []
+        for k in ks:
+            f = force if force_fn is None else float(force_fn(k * dt))
+            if force_fn is not None and (f != force or k == 0):
+                changes.append(k)
+            forces.append(f)
+            force = f
+        if needs_state:
+            torques, cols = _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm,
+                                               vm_scale)
+        else:
+            torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
+            _check_finite(torques, ks, dt)
+            try:
+                r = model.run(torques, forces)
+            except FloatingPointError as exc:
+                raise CliError(f'simulation fault: {exc}') from None
+            cols = [r[n] for n in ('screw_angle', 'nut_position', 'screw_velocity',
+                                   'nut_velocity', 'motor_torque', 'axial_force',
+                                   'thread_torque')]
+        x = float(cols[1][-1])
+        vm = vm_scale * model.output().motor_velocity
+        _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock)
+        stats['x_min'] = min(stats['x_min'], float(np.min(cols[1])))
+        stats['x_max'] = max(stats['x_max'], float(np.max(cols[1])))
+        stats['tq_max'] = max(stats['tq_max'], float(np.max(np.abs(cols[4]))))
+        stats['x_end'] = x
+        progress.update(ks.stop)
+    progress.done()
+    return stats
+
+
+def _check_finite(torques, ks, dt):
+    bad = np.flatnonzero(~np.isfinite(np.asarray(torques, dtype=float)))
+    if len(bad):
+        raise CliError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
+
+
+def _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm, vm_scale):
+    """Step tick by tick (the torque depends on the state); return torques and columns."""
+    n = len(ks)
+    cols = [np.empty(n) for _ in range(7)]
+    torques = []
+    for i, k in enumerate(ks):
+        tq = float(torque_fn(k, k * dt, x, vm))
+        _check_finite([tq], [k], dt)
+        torques.append(tq)
         try:
-            advance(tq, None, force)
+            model.advance(tq, None, forces[i])
         except FloatingPointError as exc:
             raise CliError(f'simulation fault: {exc}') from None
-        o = output()
-        s = t_ns + dt_ns
-        x, v = o.nut_position, o.nut_velocity
-        vm = vm_scale * o.motor_velocity
-        # + 0.0: a zero motor torque is +0.0, as the node publishes it
-        js = (o.screw_angle, x, o.screw_velocity, v, o.motor_torque + 0.0, o.axial_force)
-        write(c_js, ser_js(s, js), s)
-        write(c_x, ser_x(None, (x,)), s)
-        write(c_wr, ser_wr(s, (o.axial_force, o.thread_torque)), s)
-        if c_clk is not None:
-            write(c_clk, ser_clk(s, ()), s)
-        if x < x_min:
-            x_min = x
-        elif x > x_max:
-            x_max = x
-        if abs(o.motor_torque) > tq_max:
-            tq_max = abs(o.motor_torque)
-        if not k & 1023:
-            progress.update(k)
-    progress.done()
-    return dict(x_min=x_min, x_max=x_max, x_end=x, tq_max=tq_max)
+        o = model.output()
+        x, vm = o.nut_position, vm_scale * o.motor_velocity
+        for col, v in zip(cols, (o.screw_angle, x, o.screw_velocity, o.nut_velocity,
+                                 o.motor_torque, o.axial_force, o.thread_torque)):
+            col[i] = v
+    return torques, cols
+
+
+def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
+    """Encode and write the messages of one block in the node's per-tick order."""
+    enc, ids = w.enc, w.ids
+    t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+    t_state = t_cmd + dt_ns
+    # + 0.0: a zero motor torque is +0.0, as the node publishes it
+    angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = cols
+    rows = [M.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
+            enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor + 0.0, f_ax]),
+            enc.nut_position.rows(None, [x]),
+            enc.thread_force.rows(t_state, [f_ax, tq_thread])]
+    times = [t_cmd, t_state, t_state, t_state]
+    chans = [ids['torque_command'], ids['joint_states'], ids['nut_position'],
+             ids['thread_force']]
+    if clock:
+        rows.append(enc.clock.rows(t_state, []))
+        times.append(t_state)
+        chans.append(ids['/clock'])
+    a = 0
+    for c in changes + [ks.stop]:
+        i = c - ks.start
+        if i > a:
+            w.rec.write_rows(chans, [r[a:i] for r in rows], [t[a:i] for t in times])
+        if c == ks.stop:
+            break
+        # a force change: torque, force, then the states of that tick
+        w.write(chans[0], rows[0][i].tobytes(), int(t_cmd[i]))
+        w.write(ids['external_force'], M.encode_float64(forces[i]), int(t_cmd[i]))
+        w.rec.write_rows(chans[1:], [r[i:i + 1] for r in rows[1:]],
+                         [t[i:i + 1] for t in times[1:]])
+        a = i + 1
 
 
 # ---------------------------------------------------------------------------
@@ -1055,11 +1116,11 @@ def _message_class(msg_type):
 
 def _qos_from_metadata(metadata):
     """Return a QoSProfile from a channel's offered_qos_profiles (reliable, depth 10 default)."""
-    import yaml
+    from . import yamlio
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     rel, dur, depth = ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE, 10
     try:
-        profiles = yaml.safe_load(metadata.get('offered_qos_profiles', '')) or []
+        profiles = yamlio.load(metadata.get('offered_qos_profiles', '')) or []
         if profiles and isinstance(profiles[0], dict):
             pr = profiles[0]
             if pr.get('reliability') in ('best_effort', 2):
@@ -1067,7 +1128,7 @@ def _qos_from_metadata(metadata):
             if pr.get('durability') in ('transient_local', 1):
                 dur = DurabilityPolicy.TRANSIENT_LOCAL
             depth = max(1, int(pr.get('depth') or 10))
-    except (yaml.YAMLError, ValueError, TypeError, AttributeError):
+    except (yamlio.YAMLError, ValueError, TypeError, AttributeError):
         pass
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(depth, 100), reliability=rel,
                       durability=dur)

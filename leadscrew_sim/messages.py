@@ -21,6 +21,8 @@ The node, simulate and resim all encode through :class:`StateEncoder`.
 """
 import struct
 
+import numpy as np
+
 NS = 1_000_000_000
 
 #: CDR encapsulation header: plain CDR, little endian, no options.
@@ -126,6 +128,30 @@ class _Template:
             _D.pack_into(buf, off, v)
         return bytes(buf)
 
+    def rows(self, stamps_ns, columns):
+        """
+        Return n messages at once as a uint8 array of shape (n, message length).
+
+        ``stamps_ns``: int array (n,) of stamps [ns] (ignored for stamp-less
+        types); ``columns``: one float array (n,) per value, in the order of
+        ``__call__``. Row k equals ``self(stamps_ns[k], [c[k] for c in columns])``.
+        """
+        n = len(columns[0]) if columns else len(stamps_ns)
+        out = np.empty((n, len(self.tmpl)), dtype=np.uint8)
+        out[:] = np.frombuffer(self.tmpl, dtype=np.uint8)
+        if self.stamp_off is not None:
+            sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), NS)
+            if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
+                raise ValueError('stamps must lie within the int32 range of seconds')
+            stamp = np.empty((n, 2), dtype='<u4')
+            stamp[:, 0] = sec.astype('<i4').view('<u4')
+            stamp[:, 1] = nsec
+            out[:, self.stamp_off:self.stamp_off + 8] = stamp.view(np.uint8)
+        for off, col in zip(self.offsets, columns):
+            out[:, off:off + 8] = np.ascontiguousarray(col, dtype='<f8').view(
+                np.uint8).reshape(n, 8)
+        return out
+
 
 def _joint_state_template(names, n_pos, n_vel, n_eff):
     w = _CdrWriter()
@@ -157,6 +183,8 @@ def _clock_template():
 
 
 _F64 = _float64_template()
+#: The std_msgs/Float64 template (``F64_TEMPLATE.rows`` encodes many at once).
+F64_TEMPLATE = _F64
 
 
 def encode_float64(value):

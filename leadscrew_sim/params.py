@@ -10,9 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-import yaml
-
-from . import geometry
+from . import geometry, yamlio
 
 
 class ParameterError(ValueError):
@@ -277,7 +275,7 @@ def preset_path(name):
 def read_parameter_file(path):
     """Read the ros__parameters mapping of a ROS 2 parameter YAML file."""
     with open(path) as fh:
-        doc = yaml.safe_load(fh) or {}
+        doc = yamlio.load(fh) or {}
     for node in doc.values():
         if isinstance(node, dict) and 'ros__parameters' in node:
             return dict(node['ros__parameters'])

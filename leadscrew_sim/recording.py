@@ -25,16 +25,17 @@ from pathlib import Path
 
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
-import yaml
+import numpy as np
 
+from . import yamlio
+from .mcap_writer import McapWriter
 from .msgdefs import cdr_length, full_type_name, ros2msg_definition, type_hash
 
 try:
     from importlib.metadata import version as _version
-    LIBRARY = f'leadscrew_sim/{_version("leadscrew_sim")}; {LIBRARY_IDENTIFIER}'
+    LIBRARY = f'leadscrew_sim/{_version("leadscrew_sim")}'
 except Exception:  # noqa: B902 - package metadata is optional (source checkout)
-    LIBRARY = f'leadscrew_sim; {LIBRARY_IDENTIFIER}'
+    LIBRARY = 'leadscrew_sim'
 
 ROSBAG2_METADATA_VERSION = 9
 ROSBAG2_METADATA_NAME = 'rosbag2'
@@ -50,13 +51,13 @@ _QOS_CHOICES = {
 
 
 def _dump_yaml(value):
-    return yaml.safe_dump(value, sort_keys=False, default_flow_style=False).rstrip('\n')
+    return yamlio.dump(value)
 
 
 def _qos_list(qos):
     try:
-        profiles = yaml.safe_load(qos)
-    except yaml.YAMLError:
+        profiles = yamlio.load(qos)
+    except yamlio.YAMLError:
         return []
     return profiles if isinstance(profiles, list) else []
 
@@ -158,11 +159,10 @@ class McapRecorder(_Guarded):
         self._last_flush = time.monotonic()
         try:
             self._fh = open(self.path, 'wb')
-            self._writer = Writer(self._fh, chunk_size=int(chunk_size),
-                                  compression=CompressionType.ZSTD)
-            self._writer.start(profile='ros2', library=LIBRARY)
+            self._writer = McapWriter(self._fh, profile='ros2', library=LIBRARY,
+                                      chunk_size=int(chunk_size))
             self._fh.flush()
-            self._size = self._fh.tell()
+            self._size = self._writer.position
         except OSError as exc:
             self._fail(exc)
 
@@ -269,7 +269,43 @@ class McapRecorder(_Guarded):
                 if time.monotonic() - self._last_flush >= self.flush_interval:
                     self._flush_locked()
                 else:
-                    self._size = self._fh.tell()
+                    self._size = self._writer.position
+            except OSError as exc:
+                self._fail(exc)
+
+    def write_rows(self, channel_ids, payloads, log_times):
+        """
+        Append ``n`` rows of fixed-length messages, one per channel and row, in order.
+
+        The bulk form of :meth:`write` for exact CDR bytes (no trimming):
+        ``payloads`` is one uint8 array of shape (n, L) per channel,
+        ``log_times`` one int array (n,) of ns per channel (publish time =
+        log time). Never raises on I/O errors.
+        """
+        with self._op():
+            for cid in channel_ids:
+                if cid not in self._channels:
+                    raise ValueError(f'unknown channel id {cid!r}')
+            if self._writer is None or not len(payloads[0]):
+                return
+            n = len(payloads[0])
+            seqs = [np.arange(self._channels[c]['count'], self._channels[c]['count'] + n)
+                    for c in channel_ids]
+            lo = min(int(np.min(t)) for t in log_times)
+            hi = max(int(np.max(t)) for t in log_times)
+            if lo < 0:
+                raise ValueError('message times must be >= 0 ns')
+            try:
+                self._writer.add_rows(channel_ids, payloads, log_times, seqs)
+                for c in channel_ids:
+                    self._channels[c]['count'] += n
+                self.messages_written += n * len(channel_ids)
+                self._t_first = lo if self._t_first is None else min(self._t_first, lo)
+                self._t_last = hi if self._t_last is None else max(self._t_last, hi)
+                if time.monotonic() - self._last_flush >= self.flush_interval:
+                    self._flush_locked()
+                else:
+                    self._size = self._writer.position
             except OSError as exc:
                 self._fail(exc)
 
@@ -284,7 +320,7 @@ class McapRecorder(_Guarded):
 
     def _flush_locked(self):
         self._writer.flush()
-        self._size = self._fh.tell()
+        self._size = self._writer.position
         self._last_flush = time.monotonic()
 
     def add_metadata(self, name, data):
@@ -298,7 +334,7 @@ class McapRecorder(_Guarded):
             try:
                 self._writer.add_metadata(str(name), data)
                 self._fh.flush()
-                self._size = self._fh.tell()
+                self._size = self._writer.position
             except OSError as exc:
                 self._fail(exc)
 
@@ -334,8 +370,7 @@ class McapRecorder(_Guarded):
             self._writer.add_metadata(ROSBAG2_METADATA_NAME,
                                       {'serialized_metadata': _dump_yaml(self.bag_metadata())})
             self._writer.finish()
-            self._fh.flush()
-            self._size = self._fh.tell()
+            self._size = self._writer.position
             self._fh.close()
         except OSError as exc:
             self._fail(exc)

@@ -212,6 +212,43 @@ def test_resim_bit_identical_and_override(sim_file, tmp_path):
     assert _overall(r3.stdout) > 0.0
 
 
+@pytest.mark.parametrize('profile', ['step', 'move'])
+def test_simulate_tick_order_with_force_changes(profile, tmp_path):
+    """
+    Per tick: torque_command at t_k, external_force only when it changes, then the states.
+
+    2.5 s at 1 kHz spans whole and partial blocks of the batched writer; the
+    force CSV changes before the ticks at 0.25 s, 0.999 s (the last tick of
+    the first block) and 1.0 s (the first of the second). ``move`` is the closed-loop path. A
+    re-simulation of the file reproduces every state exactly.
+    """
+    from mcap.reader import make_reader
+    csv = tmp_path / 'force.csv'
+    csv.write_text('time,force\n0,0\n0.2495,3\n0.9985,-2\n0.9995,5\n')
+    out = tmp_path / 'run.mcap'
+    args = ['--profile', 'step', '--step-time', 0.1, '--amplitude', 0.2] if profile == 'step' \
+        else ['--profile', 'move', '--target', 0.002]
+    ok('simulate', '--duration', 2.5, *args, '--force-csv', csv, '--clock', '--output', out,
+       '--quiet')
+    with open(out, 'rb') as f:
+        seq = [(c.topic, m.log_time, m.data)
+               for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
+    ms = 1_000_000
+    forces = [(t, M.decode_float64(d)) for topic, t, d in seq if topic == '/external_force']
+    assert forces == [(0, 0.0), (250 * ms, 3.0), (999 * ms, -2.0), (1000 * ms, 5.0)]
+    expected = []
+    force_at = {t for t, _ in forces}
+    for k in range(2500):
+        expected.append(('/torque_command', k * ms))
+        if k * ms in force_at:
+            expected.append(('/external_force', k * ms))
+        expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
+                                                 '/thread_force', '/clock')]
+    assert [(t, lt) for t, lt, _ in seq] == expected
+    r = ok('resim', out, '--output', tmp_path / 'again.mcap')
+    assert _overall(r.stdout) == 0.0
+
+
 def test_info(sim_file):
     """Info shows counts, the position range and the re-simulated stick fraction."""
     r = ok('info', sim_file)
