@@ -295,6 +295,18 @@ class LeadScrewModel:
         """Return the simulated time [s]."""
         return self.state[K.S_T]
 
+    def joint_values(self):
+        """
+        Return the published values as a tuple of floats (the node's per-tick fast path).
+
+        (screw_angle [rad], nut_position [m], screw_velocity [rad/s],
+        nut_velocity [m/s], motor_torque [N m], axial_force [N], thread_torque
+        [N m]): the same values as the fields of :meth:`output`.
+        """
+        s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
+        return (hs * s[K.S_Q], s[K.S_XA], hs * s[K.S_DQ], s[K.S_VA], hs * o[K.O_TE],
+                o[K.O_FAX], hs * o[K.O_TTH])
+
     def output(self):
         """Return the StepOutput of the current state and last step."""
         s, o, hs = self.state, self.out, self.params.hand_sign

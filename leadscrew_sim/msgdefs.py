@@ -176,16 +176,42 @@ def msg_fields(msg_type):
     return tuple(fields)
 
 
-def cdr_length(msg_type, data):
+def _is_fixed(base):
+    """Return True if a type's CDR size does not depend on its values (no strings, sequences)."""
+    if base in _PRIMITIVE_SIZES:
+        return True
+    if base in ('string', 'wstring'):
+        return False
+    return all(array != 'seq' and _is_fixed(b) for b, array in msg_fields(base))
+
+
+@functools.lru_cache(maxsize=None)
+def fixed_cdr_length(msg_type):
+    """Return the CDR length [bytes] of a fixed-size type (std_msgs/Float64: 12), else None."""
+    try:
+        name = full_type_name(msg_type)
+        if not _is_fixed(name):
+            return None
+    except (LookupError, ValueError, RecursionError):
+        return None
+    return cdr_length(name, b'\x00\x01\x00\x00' + bytes(1 << 16), _walk=True)
+
+
+def cdr_length(msg_type, data, _walk=False):
     """
     Return the length in bytes of the CDR message of ``msg_type`` at the start of ``data``.
 
     Walks plain (XCDR1) CDR, little or big endian, after the 4-byte
-    encapsulation header. Returns None when the length cannot be determined
-    (other encodings, ``wstring`` fields, truncated or inconsistent data).
+    encapsulation header (fixed-size types: a cached length). Returns None
+    when the length cannot be determined (other encodings, ``wstring``
+    fields, truncated or inconsistent data).
     """
     if len(data) < 4 or data[0] != 0 or data[1] not in (0, 1):
         return None
+    if not _walk:
+        fixed = fixed_cdr_length(msg_type)
+        if fixed is not None:
+            return fixed if fixed <= len(data) else None
     u32 = struct.Struct('<I' if data[1] else '>I').unpack_from
     size = len(data)
 

@@ -20,7 +20,6 @@ import os
 import re
 import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 from mcap.records import Channel, Message, Metadata, Schema
@@ -89,6 +88,31 @@ def qos_profile_yaml(*, reliability='reliable', durability='volatile', history='
 DEFAULT_QOS = qos_profile_yaml()
 
 
+class _OpGuard:
+    """The context manager of :meth:`_Guarded._op` (a class: cheaper than a generator)."""
+
+    __slots__ = ('_g',)
+
+    def __init__(self, guarded):
+        self._g = guarded
+
+    def __enter__(self):
+        g = self._g
+        g._lock.acquire()
+        g._busy += 1
+
+    def __exit__(self, *exc):
+        g = self._g
+        g._busy -= 1
+        try:
+            if not g._busy and g._close_pending:
+                g._close_pending = False
+                g._close_now()
+        finally:
+            g._lock.release()
+        return False
+
+
 class _Guarded:
     """
     Serialize calls and make ``close()`` safe from a signal handler.
@@ -101,18 +125,10 @@ class _Guarded:
         self._lock = threading.RLock()
         self._busy = 0
         self._close_pending = False
+        self._guard = _OpGuard(self)
 
-    @contextmanager
     def _op(self):
-        with self._lock:
-            self._busy += 1
-            try:
-                yield
-            finally:
-                self._busy -= 1
-                if not self._busy and self._close_pending:
-                    self._close_pending = False
-                    self._close_now()
+        return self._guard
 
     def close(self):
         """Finish the file(s); idempotent, never raises on I/O errors."""
@@ -264,8 +280,10 @@ class McapRecorder(_Guarded):
                 self.messages_written += 1
                 if self._t_first is None:
                     self._t_first = self._t_last = log_time_ns
-                self._t_first = min(self._t_first, log_time_ns)
-                self._t_last = max(self._t_last, log_time_ns)
+                elif log_time_ns < self._t_first:
+                    self._t_first = log_time_ns
+                elif log_time_ns > self._t_last:
+                    self._t_last = log_time_ns
                 if time.monotonic() - self._last_flush >= self.flush_interval:
                     self._flush_locked()
                 else:
