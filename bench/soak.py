@@ -26,6 +26,18 @@ def rss_kib(pid):
     return 0
 
 
+def child_rss_kib(pid):
+    """Return the summed RSS of a process's children (the recorder) [KiB]."""
+    total = 0
+    for task in Path(f'/proc/{pid}/task').glob('*'):
+        try:
+            kids = [int(c) for c in (task / 'children').read_text().split()]
+        except OSError:
+            continue
+        total += sum(rss_kib(k) for k in kids)
+    return total
+
+
 def main():
     """Run the soak and print the figures."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -55,14 +67,14 @@ def main():
     sub_node.create_subscription(DiagnosticArray, 'diagnostics', on_diag, 10)
     t0 = time.monotonic()
     worst_max_us = 0.0
-    rss0 = None
+    rss0 = crss0 = None
     while time.monotonic() - t0 < args.duration and node.poll() is None:
         rclpy.spin_once(sub_node, timeout_sec=0.5)
         if rss0 is None and time.monotonic() - t0 > args.warmup:
-            rss0 = rss_kib(node.pid)
+            rss0, crss0 = rss_kib(node.pid), child_rss_kib(node.pid)
         if diag.get('lateness_max_us'):
             worst_max_us = max(worst_max_us, float(diag['lateness_max_us']))
-    rss1 = rss_kib(node.pid)
+    rss1, crss1 = rss_kib(node.pid), child_rss_kib(node.pid)
     last = dict(diag)
     node.send_signal(signal.SIGINT)
     node.wait(timeout=60)
@@ -81,6 +93,9 @@ def main():
     print(f'soak: {args.duration:.0f} s at 1 kHz, split every {args.split:.0f} s, dir {out}')
     print(f'RSS after warm-up {rss0} KiB, at end {rss1} KiB, growth '
           f'{100.0 * (rss1 - rss0) / rss0:.1f} %' if rss0 else f'RSS at end {rss1} KiB')
+    if rss0 and crss0:
+        print(f'recorder child RSS after warm-up {crss0} KiB, at end {crss1} KiB, growth '
+              f'{100.0 * (crss1 - crss0) / crss0:.1f} %')
     print(f'overruns {last.get("overruns")}, late ticks {last.get("late_ticks")}, largest '
           f'per-window max lateness {worst_max_us:.0f} us, rejected '
           f'{last.get("rejected_commands")}, recording error {last.get("recording_error")!r}')
