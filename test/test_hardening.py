@@ -214,15 +214,20 @@ pub.publish(msg)
 time.sleep(0.5)
 """
 
-#: Kept share of update_rate during the flood. The flood process runs flat out
-#: on one of the 2 cores; the node, the test process (receiving 1 kHz of
-#: joint_states) and whatever else runs on this shared machine share the other.
-#: Command handling is bounded per tick (at most a quarter period), so what is
-#: lost is scheduling: the node's thread descheduled for more than
-#: max_catchup_steps periods now and then. Measured over the flood on this
-#: machine: 90 to 98 % (single 1 s windows down to 85 %); 85 % leaves room for
-#: that and still fails a loop that callbacks starve (76 % before the fix).
+#: joint_states received by this test's subscriber inside the flood window,
+#: as a share of update_rate. The flood process runs flat out on one of the 2
+#: cores; the node, this test process and whatever else runs on this shared
+#: machine share the other, so delivery to this (starved) subscriber lags and
+#: messages stamped inside the window arrive after it. Measured here: 89 to
+#: 98 %; 85 % still fails a loop that callbacks starve (76 % before the fix).
+#: The node's own rate and the stamps' completeness are checked separately.
 FLOOD_KEPT = 0.85
+
+#: The node's achieved rate in each ~1 s diagnostics window during the flood,
+#: as a share of update_rate. Catch-up keeps it at 100 % unless the thread is
+#: descheduled for more than max_catchup_steps periods (skipped steps: 14 in
+#: the worst run seen here, 1.4 % of a 1 s window); 97 % leaves twice that.
+FLOOD_NODE_RATE = 0.97
 
 
 @pytest.mark.timeout(120)
@@ -268,6 +273,10 @@ def test_flood_of_commands_does_not_starve_the_loop(run_exe, ros, tmp_path):
           f'{diag_values(diags[-1])["commands"]}, skipped steps '
           f'{diag_values(diags[-1])["skipped_steps"]}')
     assert window > 0.5, 'flood too short to measure'
+    # The node's own rate (steps per second of wall time, catch-up included)
+    # over the diagnostics windows that fall in the flood.
+    rates = [float(d['achieved_rate_hz']) for d in during]
+    assert rates and min(rates) >= FLOOD_NODE_RATE * rate, rates
     assert kept >= FLOOD_KEPT, kept
     # Stamps step by whole periods. A gap wider than one period is a skip the
     # node declared (an overrun: its thread was descheduled for more than
