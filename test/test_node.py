@@ -229,7 +229,13 @@ def test_joint_commands_like_topic_based_ros2_control(run_exe, ros):
 
 @pytest.mark.timeout(90)
 def test_realtime_rate_and_stamps(run_exe, ros, tmp_path):
-    proc = start_node(run_exe, f'record_dir:={tmp_path}', record=True)
+    # A catch-up budget of 200 steps: on this shared machine the node's thread
+    # is now and then descheduled for several ms (up to 8.6 ms seen in 60 s
+    # benches); a stall beyond the default budget of 10 steps is a declared
+    # skip (an overrun). This test is about the stamping contract, so it gives
+    # catch-up room.
+    proc = start_node(run_exe, f'record_dir:={tmp_path}', 'max_catchup_steps:=200',
+                      record=True)
     raw = []
 
     def on_raw(data):
