@@ -1175,6 +1175,12 @@ def _parse_remaps(items):
     return remap
 
 
+#: play: pause after the subscribers matched [s] (the readers' side of discovery).
+PLAY_SETTLE_S = 0.25
+#: play: longest wait for the subscribers' acknowledgements at the end [s].
+PLAY_ACK_TIMEOUT_S = 5.0
+
+
 def cmd_play(args):
     """Republish a recording with its original timing."""
     if not (math.isfinite(args.rate) and args.rate > 0):
@@ -1212,6 +1218,10 @@ def cmd_play(args):
         while time.monotonic() < end:
             matched = sum(p.get_subscription_count() for p in pubs.values())
             if matched >= args.wait_subscribers:
+                # Discovery is two-sided: the subscription can be matched here
+                # before its reader has matched this writer, and a message sent
+                # in between is not delivered. Give the other side a moment.
+                time.sleep(PLAY_SETTLE_S)
                 break
             time.sleep(0.01)
         else:
@@ -1234,8 +1244,16 @@ def cmd_play(args):
             if not args.loop:
                 break
         wall = (time.monotonic_ns() - t_wall0) / NS
+        # Reliable writers: wait until the subscribers acknowledged the tail
+        # before the node (and its history) is destroyed.
+        from rclpy.duration import Duration
+        unacked = [t for t, p in pubs.items()
+                   if not p.wait_for_all_acked(Duration(seconds=PLAY_ACK_TIMEOUT_S))]
         print(f'published {sent} messages on {len(used)} topics in {wall:.3f} s '
               f'(rate {args.rate:g})')
+        if unacked:
+            print(f'{PROG}: warning: not acknowledged within {PLAY_ACK_TIMEOUT_S:g} s on '
+                  f'{", ".join(unacked)}', file=sys.stderr)
     except KeyboardInterrupt:
         print(f'{PROG}: interrupted', file=sys.stderr)
         return 130
