@@ -215,23 +215,20 @@ time.sleep(0.5)
 """
 
 #: joint_states received by this test's subscriber inside the flood window,
-#: as a share of update_rate. The flood process runs flat out on one of the 2
-#: cores; the node, this test process and whatever else runs on this shared
-#: machine share the other, so delivery to this (starved) subscriber lags and
-#: messages stamped inside the window arrive after it. Measured here: 89 to
-#: 98 %; 85 % still fails a loop that callbacks starve (76 % before the fix).
-#: The node's own rate and the stamps' completeness are checked separately.
-FLOOD_KEPT = 0.85
+#: as a share of update_rate. Measured here with the flood publisher at nice
+#: 19 (10-13 k commands/s): 100.0 % in 3 of 3 runs; with the publisher at
+#: normal priority taking a whole core of the 2, 89-99 %. 90 % still fails a
+#: loop that the callbacks starve (76 % before the per-tick spin budget).
+FLOOD_KEPT = 0.90
 
 #: The node's achieved rate over the ~1 s diagnostics windows during the
 #: flood, as a share of update_rate: mean and worst window. Catch-up keeps it
 #: at 100 % unless the thread is descheduled for more than max_catchup_steps
-#: periods (declared skipped steps). Seen here with the flood on one of the 2
-#: shared cores: means 98.6-99.0 %, worst single window 95.9 % (41 skips).
-#: A loop that the callbacks starve (before the per-tick spin budget) kept
-#: 76 %, which both bars fail.
-FLOOD_NODE_RATE = 0.95
-FLOOD_WINDOW_RATE = 0.85
+#: periods (declared skipped steps). Measured with the niced publisher:
+#: 999.85-1000.15 Hz in every window of 3 runs. The bars leave room for this
+#: shared machine's multi-ms stalls (a 20 ms stall costs 1 % of a window).
+FLOOD_NODE_RATE = 0.97
+FLOOD_WINDOW_RATE = 0.90
 
 
 @pytest.mark.timeout(120)
@@ -245,8 +242,13 @@ def test_flood_of_commands_does_not_starve_the_loop(run_exe, ros, tmp_path):
     diags = ros.collect(DiagnosticArray, 'diagnostics', qos=10)
     wait_states(ros, raw, proc)
     log = open(tmp_path / 'flood.log', 'w+')
+    # The flood publisher runs at nice 19: what is under test is the node's
+    # handling of a message flood (bounded callbacks per tick), not a 2-core
+    # machine with one core taken by the publisher's own busy loop, where the
+    # node's thread is descheduled whatever the node does.
     flood = subprocess.Popen([sys.executable, '-c', FLOOD, str(FLOOD_N)], stdout=log,
-                             stderr=subprocess.STDOUT, env=dict(os.environ))
+                             stderr=subprocess.STDOUT, env=dict(os.environ),
+                             preexec_fn=lambda: os.nice(19))
     try:
         done = ros.spin_until(lambda: flood.poll() is not None, 90.0)
     finally:
