@@ -52,6 +52,16 @@ def children(pid):
     return out
 
 
+def isolate_ros_env():
+    """Put the repo on PYTHONPATH and keep DDS on localhost in a domain of our own."""
+    os.environ['PYTHONPATH'] = os.pathsep.join(
+        [str(REPO)] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p])
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    if not os.environ.get('ROS_DOMAIN_ID'):
+        os.environ['ROS_DOMAIN_ID'] = str(101 + os.getpid() % 100)
+
+
 def pct(values, q):
     """Nearest-rank percentile."""
     if not values:
@@ -254,12 +264,7 @@ def main():
     if args.bare:
         bare_loop(args.rate, args.stats)
         return 0
-    os.environ['PYTHONPATH'] = os.pathsep.join(
-        [str(REPO)] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p])
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    if not os.environ.get('ROS_DOMAIN_ID'):
-        os.environ['ROS_DOMAIN_ID'] = str(101 + os.getpid() % 100)
+    isolate_ros_env()
     tmp = Path(tempfile.mkdtemp(prefix='bench_node_'))
     node_stats, bare_stats = tmp / 'node.json', tmp / 'bare.json'
     node_argv = [sys.executable, '-m', 'leadscrew_sim.node', '--ros-args',

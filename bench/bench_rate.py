@@ -19,7 +19,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_node import measure, REPO  # noqa: E402
+from bench_node import isolate_ros_env, measure  # noqa: E402
 
 
 def main():
@@ -29,12 +29,7 @@ def main():
     ap.add_argument('--rates', type=float, nargs='+', default=[1000, 2000, 3000, 4000, 5000])
     ap.add_argument('--preset', default='tr12x3')
     args = ap.parse_args()
-    os.environ['PYTHONPATH'] = os.pathsep.join(
-        [str(REPO)] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p])
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    if not os.environ.get('ROS_DOMAIN_ID'):
-        os.environ['ROS_DOMAIN_ID'] = str(101 + os.getpid() % 100)
+    isolate_ros_env()
     tmp = Path(tempfile.mkdtemp(prefix='bench_rate_'))
     print(f'bench_rate: {args.duration:g} s per rate, preset {args.preset}, recording on; '
           f'{os.cpu_count()} CPUs; files in {tmp}', flush=True)
