@@ -176,6 +176,86 @@ def workspace():
 
 
 @njit(cache=True, error_model='numpy', _nrt=False)
+def _mu(muk, muv, drop, vst, dst, zcut, v):
+    """
+    Apparent Stribeck coefficient mu'(|v|) >= 0 from unpacked parameters.
+
+    The Stribeck term is skipped where it cannot change the sum: for
+    |v| / v_st > zcut (see _stribeck_cut) and a sum not below mu_k, it is less
+    than half an ulp of the sum, so the result is bit-identical to mu_apparent.
+    """
+    a = abs(v)
+    mu = muk + muv * a
+    if drop != 0.0:
+        z = a / vst
+        if z <= zcut or mu < muk:
+            if dst != 1.0:
+                z = z ** dst
+            mu += drop * math.exp(-z)
+    return mu if mu > 0.0 else 0.0
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def _mu_lower(muk, muv, drop, vst, dst, v):
+    """
+    A lower bound of _mu(v) that needs no exp(): exp(-z) >= max(0, 1 - z).
+
+    The 1e-15 |drop| margin covers the rounding of 1 - z against that of
+    exp(-z); every later operation rounds monotonically, so a limit computed
+    from this bound never exceeds the one computed from _mu.
+    """
+    mu = muk + muv * abs(v)
+    if drop > 0.0:
+        z = abs(v) / vst
+        if dst == 1.0 and z < 1.0:
+            mu += drop * (1.0 - z) - 1e-15 * drop
+    elif drop < 0.0:
+        mu += drop + 1e-15 * drop
+    return mu
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def _stribeck_cut(muk, drop, dst):
+    """
+    The |v| / v_st above which |drop| exp(-z) < mu_k 2**-54 (half an ulp of mu_k).
+
+    37.5 > 54 ln 2 = 37.43; returns inf where no cut is safe (mu_k = 0).
+    """
+    if muk <= 0.0 or drop == 0.0:
+        return math.inf
+    zc = 37.5 + math.log(abs(drop) / muk)
+    if zc <= 0.0:
+        return 0.0
+    return zc if dst == 1.0 else zc ** (1.0 / dst)
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def _box1(w, v0, lim, mode):
+    """
+    One friction element: (impulse, mode, searched) of the scalar box LCP.
+
+    The same arithmetic as _solve_free/_friction_lcp with n = 1: the warm-start
+    mode first, then the modes -1, 0, +1 in that order.
+    """
+    searched = False
+    for attempt in range(4):
+        md = mode if attempt == 0 else attempt - 2
+        if md != 0:
+            p = md * lim
+        else:
+            p = -v0 / (w + (1e-12 * w + 1e-300))
+        if md == 0:
+            ok = abs(p) <= lim * (1.0 + 1e-9)
+        else:
+            tol = 1e-9 * (abs(v0) + w * lim) + 1e-300
+            ok = md * (v0 + w * p) <= tol
+        if ok:
+            return p, md, searched
+        searched = True
+    return lim, mode, True
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
     Advance the state S by exactly dt in nsub equal substeps.
@@ -183,6 +263,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
     force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
     became non-finite (S is then left at the last finite substep).
+
+    The state lives in local scalars for the whole step (written back once);
+    a single active friction element is solved in closed form (_box1), more
+    than one by the exact box LCP on the workspace arrays.
     """
     h = dt / nsub
     rigid = P[P_RIGID] > 0.5
@@ -194,90 +278,103 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     hb = 0.5 * P[P_B]
     k = P[P_K]
     c = P[P_C]
-    M = wk[0:4]
-    f = wk[4:8]
-    u = wk[8:12]
-    un = wk[12:16]
-    ub = wk[16:20]
-    Jm = wk[20:36].reshape((MAXE, 4))
-    W = wk[36:52].reshape((MAXE, MAXE))
-    v0 = wk[52:56]
-    lim = wk[56:60]
-    p = wk[60:64]
-    A = wk[64:80].reshape((MAXE, MAXE))
-    r = wk[80:84]
-    Minv = wk[84:88]
-    Wfull = wk[88:104].reshape((MAXE, MAXE))
-    mode = iwk[0:4]
-    eid = iwk[4:8]
-    idx = iwk[8:12]
-    trial = iwk[12:16]
-    M[0] = P[P_JM]
-    M[1] = P[P_JS] + (P[P_JM] if rigid else 0.0)
-    M[2] = P[P_MA]
-    M[3] = P[P_MB]
-    for i in range(16):
-        Jm.flat[i] = 0.0
+    kc = P[P_KC]
+    cc = P[P_CC]
+    cs = P[P_CS]
+    cx = P[P_CX]
+    ma = P[P_MA]
+    mb = P[P_MB]
+    kes = P[P_KES]
+    ces = P[P_CES]
+    xmin = P[P_XMIN]
+    xmax = P[P_XMAX]
+    muk = P[P_MUK]
+    muv = P[P_MUV]
+    drop = P[P_MUS] - P[P_MUK]
+    vst = P[P_VST]
+    dst = P[P_DST]
+    zcut = _stribeck_cut(muk, drop, dst)
+    fp = P[P_FP]
+    kp = P[P_KP]
+    bb = P[P_B]
+    ts0 = P[P_TS0]
+    mcr = P[P_MUC] * P[P_RCOL]
+    lg = h * P[P_FX0]
+    # inverse masses; element Jacobian rows (q sense): thread A [0, rc, sl, 0],
+    # thread B [0, rc, 0, sl], bearing/collar [0, 1, 0, 0], guide [0, 0, 1, 0]
+    mi0 = 1.0 / P[P_JM]
+    mi1 = 1.0 / (P[P_JS] + (P[P_JM] if rigid else 0.0))
+    mi2 = 1.0 / ma
+    mi3 = 1.0 / mb
+    # Delassus matrix entries J_a M^-1 J_b^T (w13 = w23 = 0)
+    w00 = rc * rc * mi1 + sl * sl * mi2
+    w01 = rc * rc * mi1
+    w02 = rc * mi1
+    w03 = sl * mi2
+    w11 = rc * rc * mi1 + sl * sl * mi3
     tsat = min(max(t_cmd, -P[P_TMAX]), P[P_TMAX])
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     fext = P[P_FEXT] + f_in
     gs = P[P_GS]
-    Jm[0, 1] = rc
-    Jm[0, 2] = sl
-    Jm[1, 1] = rc
-    Jm[1, 3] = sl
-    Jm[2, 1] = 1.0
-    Jm[3, 2] = 1.0
-    for i in range(4):
-        Minv[i] = 1.0 / M[i]
-    for a in range(MAXE):
-        for b in range(MAXE):
-            w = 0.0
-            for i in range(4):
-                w += Jm[a, i] * Jm[b, i] * Minv[i]
-            Wfull[a, b] = w
+    # state in locals
+    qm = S[S_QM]
+    q = S[S_Q]
+    xa = S[S_XA]
+    xb = S[S_XB]
+    u0 = S[S_WM]
+    u1 = S[S_DQ]
+    u2 = S[S_VA]
+    u3 = S[S_VB]
+    te = S[S_TE]
+    t = S[S_T]
+    win = S[S_WIN]
+    wext = S[S_WEXT]
+    efric = S[S_EFRIC]
+    edamp = S[S_EDAMP]
+    faprev = S[S_FAPREV]
+    md0 = int(S[S_MODE0])
+    md1 = int(S[S_MODE0 + 1])
+    md2 = int(S[S_MODE0 + 2])
+    md3 = int(S[S_MODE0 + 3])
+    nsearch = S[S_NSEARCH]
+    status = 0
+    pla = pua = plb = pub = 0.0
+    ffa = ffb = tbr = fg = fa_thr = 0.0
     for _ in range(nsub):
-        qm = S[S_QM]
-        q = S[S_Q]
-        xa = S[S_XA]
-        xb = S[S_XB]
-        u[0] = S[S_WM]
-        u[1] = S[S_DQ]
-        u[2] = S[S_VA]
-        u[3] = S[S_VB]
-        te = S[S_TE] + alpha * (tsat - S[S_TE])
-        for i in range(4):
-            f[i] = 0.0
-        damp_pow = 0.0   # damping forces x their own (pre-step) rates, for dissipation
+        te_n = te + alpha * (tsat - te)
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        f3 = 0.0
         # motor and coupling
         if rigid:
-            f[1] += te
+            f1 += te_n
         else:
-            f[0] += te
-            tcs = P[P_KC] * (qm - q)
-            tcd = P[P_CC] * (u[0] - u[1])
-            f[0] -= tcs + tcd
-            f[1] += tcs + tcd
+            f0 += te_n
+            tcs = kc * (qm - q)
+            tcd = cc * (u0 - u1)
+            f0 -= tcs + tcd
+            f1 += tcs + tcd
         # bearing and guide viscous, gravity, external force
-        f[1] -= P[P_CS] * u[1]
-        f[2] -= P[P_CX] * u[2]
-        f[2] += fext - P[P_MA] * gs
+        f1 -= cs * u1
+        f2 -= cx * u2
+        f2 += fext - ma * gs
         if ab:
-            f[3] -= P[P_MB] * gs
+            f3 -= mb * gs
         # end stops on nut A (unilateral, damper never pulls)
         fes_lo = 0.0
         fes_hi = 0.0
-        pen = P[P_XMIN] - xa
+        pen = xmin - xa
         if pen > 0.0:
-            fes_lo = max(0.0, P[P_KES] * pen - P[P_CES] * u[2])
-            f[2] += fes_lo
-        pen2 = xa - P[P_XMAX]
+            fes_lo = max(0.0, kes * pen - ces * u2)
+            f2 += fes_lo
+        pen2 = xa - xmax
         if pen2 > 0.0:
-            fes_hi = max(0.0, P[P_KES] * pen2 + P[P_CES] * u[2])
-            f[2] -= fes_hi
+            fes_hi = max(0.0, kes * pen2 + ces * u2)
+            f2 -= fes_hi
         # thread contact of nut A
         d = xa - rt * q
-        dd = u[2] - rt * u[1]
+        dd = u2 - rt * u1
         ela = -d - hb
         eua = d - hb
         pla = 0.0
@@ -287,14 +384,15 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         if eua > 0.0:
             pua = max(0.0, k * eua + c * dd)
         fna = pla - pua
-        f[2] += fna
-        f[1] -= rt * fna
+        f2 += fna
+        f1 -= rt * fna
         plb = 0.0
         pub = 0.0
-        fs = 0.0
+        elb = 0.0
+        eub = 0.0
         if ab:
             db = xb - rt * q
-            ddb = u[3] - rt * u[1]
+            ddb = u3 - rt * u1
             elb = -db - hb
             eub = db - hb
             if elb > 0.0:
@@ -302,127 +400,215 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             if eub > 0.0:
                 pub = max(0.0, k * eub + c * ddb)
             fnb = plb - pub
-            f[3] += fnb
-            f[1] -= rt * fnb
-            fs = P[P_FP] + P[P_KP] * (P[P_B] - (xb - xa))
-            f[3] += fs
-            f[2] -= fs
+            f3 += fnb
+            f1 -= rt * fnb
+            fs = fp + kp * (bb - (xb - xa))
+            f3 += fs
+            f2 -= fs
         # unconstrained velocity
-        for i in range(4):
-            un[i] = u[i]
-            u[i] = u[i] + h * f[i] * Minv[i]
+        un0 = u0
+        un1 = u1
+        un2 = u2
+        un3 = u3
+        u0 = u0 + h * f0 * mi0
+        u1 = u1 + h * f1 * mi1
+        u2 = u2 + h * f2 * mi2
+        u3 = u3 + h * f3 * mi3
         # friction elements with a non-zero limit
-        n = 0
-        vsa = rc * un[1] + sl * un[2]
-        la = h * mu_apparent(P, vsa) * (pla + pua) / cl
-        if la > 0.0:
-            eid[n] = 0
-            lim[n] = la
-            n += 1
-        if ab:
-            vsb = rc * un[1] + sl * un[3]
-            lb = h * mu_apparent(P, vsb) * (plb + pub) / cl
-            if lb > 0.0:
-                eid[n] = 1
-                lim[n] = lb
-                n += 1
-        lbr = h * (P[P_TS0] + P[P_MUC] * P[P_RCOL] * abs(S[S_FAPREV]))
-        if lbr > 0.0:
-            eid[n] = 2
-            lim[n] = lbr
-            n += 1
-        lg = h * P[P_FX0]
-        if lg > 0.0:
-            eid[n] = 3
-            lim[n] = lg
-            n += 1
-        for a in range(n):
-            ea = eid[a]
-            mode[a] = int(S[S_MODE0 + ea])
-            v0[a] = 0.0
-            for i in range(4):
-                v0[a] += Jm[ea, i] * u[i]
-            for b in range(n):
-                W[a, b] = Wfull[ea, eid[b]]
-        if n > 0:
+        # thread A's limit; while A is stuck, a lower bound first (la = -1: not computed),
+        # enough to confirm the stick in most substeps without exp()
+        na = pla + pua
+        la = 0.0
+        la_lo = 0.0
+        if na > 0.0:
+            if md0 == 0:
+                la_lo = h * _mu_lower(muk, muv, drop, vst, dst, rc * un1 + sl * un2) * na / cl
+            if la_lo > 0.0:
+                la = -1.0
+            else:
+                la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+        lb = 0.0
+        if plb + pub > 0.0:
+            lb = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * (plb + pub) / cl
+        lbr = h * (ts0 + mcr * abs(faprev))
+        n = (la != 0.0) + (lb > 0.0) + (lbr > 0.0) + (lg > 0.0)
+        pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
+        srch = False
+        if n == 1:
+            if la != 0.0:
+                vv = rc * u1 + sl * u2
+                if la < 0.0:   # stuck warm start: the stick impulse of _box1, checked on the bound
+                    pa = -vv / (w00 + (1e-12 * w00 + 1e-300))
+                    if abs(pa) > la_lo * (1.0 + 1e-9):
+                        la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+                        pa, md0, srch = _box1(w00, vv, la, md0)
+                else:
+                    pa, md0, srch = _box1(w00, vv, la, md0)
+            elif lb > 0.0:
+                vv = rc * u1 + sl * u3
+                pb, md1, srch = _box1(w11, vv, lb, md1)
+            elif lbr > 0.0:
+                pc, md2, srch = _box1(mi1, u1, lbr, md2)
+            else:
+                pg, md3, srch = _box1(mi2, u2, lg, md3)
+            if srch:
+                nsearch += 1.0
+        elif n > 1:   # the general box LCP on the workspace arrays
+            if la < 0.0:
+                la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+            W = wk[36:52].reshape((MAXE, MAXE))
+            v0 = wk[52:56]
+            lim = wk[56:60]
+            p = wk[60:64]
+            A = wk[64:80].reshape((MAXE, MAXE))
+            r = wk[80:84]
+            Wfull = wk[88:104].reshape((MAXE, MAXE))
+            mode = iwk[0:4]
+            eid = iwk[4:8]
+            idx = iwk[8:12]
+            trial = iwk[12:16]
+            Wfull[0, 0] = w00
+            Wfull[0, 1] = w01
+            Wfull[0, 2] = w02
+            Wfull[0, 3] = w03
+            Wfull[1, 1] = w11
+            Wfull[1, 2] = w02
+            Wfull[1, 3] = 0.0
+            Wfull[2, 2] = mi1
+            Wfull[2, 3] = 0.0
+            Wfull[3, 3] = mi2
+            for a in range(1, MAXE):
+                for b in range(a):
+                    Wfull[a, b] = Wfull[b, a]
+            n = 0
+            for e, le in ((0, la), (1, lb), (2, lbr), (3, lg)):
+                if le > 0.0:
+                    eid[n] = e
+                    lim[n] = le
+                    n += 1
+            for a in range(n):
+                ea = eid[a]
+                if ea == 0:
+                    mode[a] = md0
+                    v0[a] = rc * u1 + sl * u2
+                elif ea == 1:
+                    mode[a] = md1
+                    v0[a] = rc * u1 + sl * u3
+                elif ea == 2:
+                    mode[a] = md2
+                    v0[a] = u1
+                else:
+                    mode[a] = md3
+                    v0[a] = u2
+                for b in range(n):
+                    W[a, b] = Wfull[ea, eid[b]]
             if not _solve_free(W, v0, lim, mode, n, p, A, r, idx):
-                S[S_NSEARCH] += 1.0
+                nsearch += 1.0
                 _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial)
             for a in range(n):
                 ea = eid[a]
-                S[S_MODE0 + ea] = mode[a]
-                for i in range(4):
-                    u[i] += Jm[ea, i] * p[a] * Minv[i]
-        if rigid:
-            u[0] = u[1]
-        if not ab:
-            u[3] = u[2]
-        # positions (symplectic Euler)
-        S[S_QM] = qm + h * u[0]
-        S[S_Q] = q + h * u[1]
-        S[S_XA] = xa + h * u[2]
-        S[S_XB] = xb + h * u[3]
-        S[S_WM] = u[0]
-        S[S_DQ] = u[1]
-        S[S_VA] = u[2]
-        S[S_VB] = u[3]
-        S[S_TE] = te
-        # energy bookkeeping with the mid-step velocity ub
-        for i in range(4):
-            ub[i] = 0.5 * (un[i] + u[i])
-        S[S_WIN] += h * te * (ub[1] if rigid else ub[0])
-        S[S_WEXT] += h * fext * ub[2]
-        damp_pow = P[P_CS] * un[1] * ub[1] + P[P_CX] * un[2] * ub[2]
-        if not rigid:
-            damp_pow += P[P_CC] * (un[0] - un[1]) * (ub[0] - ub[1])
-        ddb_ = ub[2] - rt * ub[1]
-        if ela > 0.0:
-            damp_pow += (pla - k * ela) * (-ddb_)
-        if eua > 0.0:
-            damp_pow += (pua - k * eua) * ddb_
-        if pen > 0.0:
-            damp_pow += (fes_lo - P[P_KES] * pen) * (-ub[2])
-        if pen2 > 0.0:
-            damp_pow += (fes_hi - P[P_KES] * pen2) * ub[2]
-        if ab:
-            ddbb = ub[3] - rt * ub[1]
-            elb2 = -(xb - rt * q) - hb
-            eub2 = (xb - rt * q) - hb
-            if elb2 > 0.0:
-                damp_pow += (plb - k * elb2) * (-ddbb)
-            if eub2 > 0.0:
-                damp_pow += (pub - k * eub2) * ddbb
-        S[S_EDAMP] += h * damp_pow
-        fric_pow = 0.0
-        fa_thr = 0.0
-        tbr = 0.0
-        ffa = 0.0
-        ffb = 0.0
-        fg = 0.0
-        if n > 0:
-            for a in range(n):
-                ea = eid[a]
-                vb = 0.0
-                for i in range(4):
-                    vb += Jm[ea, i] * ub[i]
-                fric_pow -= p[a] * vb
                 if ea == 0:
-                    ffa = p[a] / h
+                    md0 = mode[a]
+                    pa = p[a]
                 elif ea == 1:
-                    ffb = p[a] / h
+                    md1 = mode[a]
+                    pb = p[a]
                 elif ea == 2:
-                    tbr = p[a] / h
+                    md2 = mode[a]
+                    pc = p[a]
                 else:
-                    fg = p[a] / h
-        S[S_EFRIC] += fric_pow
+                    md3 = mode[a]
+                    pg = p[a]
+        if n > 0:   # element by element, in element order (adding 0 changes nothing)
+            u1 += rc * pa * mi1
+            u2 += sl * pa * mi2
+            u1 += rc * pb * mi1
+            u3 += sl * pb * mi3
+            u1 += pc * mi1
+            u2 += pg * mi2
+        if rigid:
+            u0 = u1
+        if not ab:
+            u3 = u2
+        # positions (symplectic Euler)
+        qm_n = qm + h * u0
+        q_n = q + h * u1
+        xa_n = xa + h * u2
+        xb_n = xb + h * u3
+        if not (math.isfinite(qm_n) and math.isfinite(q_n) and math.isfinite(xa_n)
+                and math.isfinite(xb_n) and math.isfinite(u0) and math.isfinite(u1)
+                and math.isfinite(u2) and math.isfinite(u3) and math.isfinite(te_n)):
+            u0 = un0
+            u1 = un1
+            u2 = un2
+            u3 = un3
+            status = 1
+            break
+        # energy bookkeeping with the mid-step velocities
+        ub0 = 0.5 * (un0 + u0)
+        ub1 = 0.5 * (un1 + u1)
+        ub2 = 0.5 * (un2 + u2)
+        ub3 = 0.5 * (un3 + u3)
+        win += h * te_n * (ub1 if rigid else ub0)
+        wext += h * fext * ub2
+        damp_pow = cs * un1 * ub1 + cx * un2 * ub2
+        if not rigid:
+            damp_pow += cc * (un0 - un1) * (ub0 - ub1)
+        ddm = ub2 - rt * ub1
+        if ela > 0.0:
+            damp_pow += (pla - k * ela) * (-ddm)
+        if eua > 0.0:
+            damp_pow += (pua - k * eua) * ddm
+        if pen > 0.0:
+            damp_pow += (fes_lo - kes * pen) * (-ub2)
+        if pen2 > 0.0:
+            damp_pow += (fes_hi - kes * pen2) * ub2
+        if ab:
+            ddmb = ub3 - rt * ub1
+            if elb > 0.0:
+                damp_pow += (plb - k * elb) * (-ddmb)
+            if eub > 0.0:
+                damp_pow += (pub - k * eub) * ddmb
+        edamp += h * damp_pow
+        efric -= (pa * (rc * ub1 + sl * ub2) + pb * (rc * ub1 + sl * ub3)
+                  + pc * ub1 + pg * ub2)
+        ffa = pa / h
+        ffb = pb / h
+        tbr = pc / h
+        fg = pg / h
         fa_thr = (pla - pua) + ffa * sl
         if ab:
             fa_thr += (plb - pub) + ffb * sl
-        S[S_FAPREV] = fa_thr
-        S[S_T] += h
-        for i in range(9):
-            if not math.isfinite(S[i]):
-                return 1
+        faprev = fa_thr
+        qm = qm_n
+        q = q_n
+        xa = xa_n
+        xb = xb_n
+        te = te_n
+        t += h
+    # write the state back once
+    S[S_QM] = qm
+    S[S_WM] = u0
+    S[S_Q] = q
+    S[S_DQ] = u1
+    S[S_XA] = xa
+    S[S_VA] = u2
+    S[S_XB] = xb
+    S[S_VB] = u3
+    S[S_TE] = te
+    S[S_T] = t
+    S[S_WIN] = win
+    S[S_WEXT] = wext
+    S[S_EFRIC] = efric
+    S[S_EDAMP] = edamp
+    S[S_FAPREV] = faprev
+    S[S_MODE0] = md0
+    S[S_MODE0 + 1] = md1
+    S[S_MODE0 + 2] = md2
+    S[S_MODE0 + 3] = md3
+    S[S_NSEARCH] = nsearch
+    if status:
+        return 1
     # outputs of the last substep
     out[O_NLA] = pla / cl
     out[O_NUA] = pua / cl
@@ -430,15 +616,15 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     out[O_NUB] = pub / cl
     out[O_FFA] = ffa
     out[O_FFB] = ffb
-    out[O_VSA] = rc * S[S_DQ] + sl * S[S_VA]
-    out[O_VSB] = rc * S[S_DQ] + sl * S[S_VB] if ab else 0.0
-    out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if S[S_MODE0] == 0 else 0.0)
-    out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if S[S_MODE0 + 1] == 0 else 0.0)
+    out[O_VSA] = rc * u1 + sl * u2
+    out[O_VSB] = rc * u1 + sl * u3 if ab else 0.0
+    out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if md0 == 0 else 0.0)
+    out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if md1 == 0 else 0.0)
     out[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
     out[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
     out[O_FAX] = fa_thr
     out[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
-    out[O_TE] = S[S_TE]
+    out[O_TE] = te
     out[O_TBR] = tbr
     out[O_FG] = fg
     out[O_NSUB] = nsub
