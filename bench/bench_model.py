@@ -2,9 +2,10 @@
 Benchmark the physics core: ns per substep, real-time factor, and LSODA side by side.
 
 Run: make bench   (or: .venv/bin/python bench/bench_model.py [--seconds 20])
-Prints, in one run on this machine:
-- ns per substep of the full model (backlash + stiction + anti-backlash preset);
-- simulated seconds per wall second for each preset at dt = 1 ms, no I/O;
+Prints, in one run on this machine, for each preset at dt = 1 ms, no I/O, under two
+drives (zero torque: holding; a PD position loop tracking a sine: moving, reversing):
+- ns per substep (the full model: backlash + stiction + anti-backlash preset);
+- simulated seconds per wall second, per tick call and in one batch call;
 - the same smooth case integrated by our kernel and by scipy's solve_ivp (LSODA),
   with the wall time ratio.
 """
@@ -19,23 +20,52 @@ from leadscrew_sim import kernel as K
 from leadscrew_sim import LeadScrewModel, load_preset, preset_names
 
 
-def kernel_rate(params, sim_seconds, dt=1e-3):
-    """Return (ns per substep, sim s per wall s) for a sine torque drive."""
+def track_torques(params, sim_seconds, dt=1e-3, amplitude=0.05, freq=0.5, bandwidth=20.0):
+    """
+    Motor torques [N m] of a PD loop on the motor angle tracking x = A sin(2 pi f t).
+
+    The loop runs once through the model (tick by tick); the returned torques
+    replay the same trajectory bit for bit (the model is deterministic), so the
+    timed runs below measure the kernel alone, on an axis that moves, reverses
+    and sticks as under a real position controller.
+    """
     m = LeadScrewModel(params, dt=dt)
+    P = m._P
+    rt = P[K.P_RT]
+    j = params.motor_inertia + params.screw_inertia + \
+        (params.nut_mass + params.payload_mass) * rt ** 2
+    w = 2 * math.pi * bandwidth
+    kp, kd = j * w * w, 2 * 0.7 * w * j
     n = int(sim_seconds / dt)
-    torques = 0.3 * params.max_torque * np.sin(2 * math.pi * 0.5 * np.arange(n) * dt)
-    K.step(m._P, m.state, m.out, 0.0, 0.0, dt, m.nsub, m._wk, m._iwk)   # compile, warm up
+    out = np.empty(n)
+    for i in range(n):
+        q_ref = amplitude * math.sin(2 * math.pi * freq * (i * dt)) / rt    # q sense
+        t_q = kp * (q_ref - m.state[K.S_QM]) - kd * m.state[K.S_WM]
+        t_q = min(max(t_q, -params.max_torque), params.max_torque)
+        out[i] = params.hand_sign * t_q
+        m.advance(out[i])
+    return out
+
+
+def kernel_rate(params, torques, dt=1e-3):
+    """Return (ns per substep, sim s per wall s, nsub, batch ns, batch x, stuck share)."""
+    m = LeadScrewModel(params, dt=dt)
+    n = len(torques)
+    sim_seconds = n * dt
+    tq_q = params.hand_sign * torques
+    m.run(torques[:2])                     # compile, warm up both paths
+    K.step(m._P, m.state, m.out, 0.0, 0.0, dt, m.nsub, m._wk, m._iwk)
     m.reset()
     t0 = time.perf_counter()
-    for tq in torques:
+    for tq in tq_q:
         K.step(m._P, m.state, m.out, tq, 0.0, dt, m.nsub, m._wk, m._iwk)
     wall = time.perf_counter() - t0
     m.reset()
     t0 = time.perf_counter()
-    m.run(torques)                      # the same steps in one compiled call
+    res = m.run(torques)                   # the same steps in one compiled call
     batch = time.perf_counter() - t0
     return wall / (n * m.nsub) * 1e9, sim_seconds / wall, m.nsub, \
-        batch / (n * m.nsub) * 1e9, sim_seconds / batch
+        batch / (n * m.nsub) * 1e9, sim_seconds / batch, float(np.mean(res['stuck']))
 
 
 def lsoda_side_by_side(sim_seconds):
@@ -81,11 +111,16 @@ def main():
     args = ap.parse_args()
     print('per-step call = one kernel call per 1 ms tick (as the node does);')
     print('batch = model.run(), all ticks in one compiled call (as simulate can)')
-    print(f'{"preset":<15}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}'
-          f'{"batch ns/sub":>14}{"batch x rt":>12}')
+    print('hold = zero torque; track = PD position loop, x = 50 mm sin(2 pi 0.5 Hz t)')
+    print(f'{"preset":<15}{"drive":<7}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}'
+          f'{"batch ns/sub":>14}{"batch x rt":>12}{"stuck %":>9}')
+    n = int(args.seconds / 1e-3)
     for name in preset_names():
-        ns, rtf, nsub, bns, brtf = kernel_rate(load_preset(name), args.seconds)
-        print(f'{name:<15}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}{bns:>14.1f}{brtf:>12.0f}')
+        p = load_preset(name)
+        for drive, torques in (('hold', np.zeros(n)), ('track', track_torques(p, args.seconds))):
+            ns, rtf, nsub, bns, brtf, stuck = kernel_rate(p, torques)
+            print(f'{name:<15}{drive:<7}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}{bns:>14.1f}'
+                  f'{brtf:>12.0f}{100 * stuck:>9.1f}')
     ours, lsoda, dx, nfev = lsoda_side_by_side(min(args.seconds, 5.0))
     print(f'\nsmooth case, {min(args.seconds, 5.0)} s simulated: kernel {ours:.3f} s wall, '
           f'LSODA {lsoda:.3f} s wall ({nfev} RHS calls), ratio LSODA/kernel '

@@ -39,7 +39,8 @@ P_MA, P_MB, P_CX, P_FX0, P_GS = 21, 22, 23, 24, 25
 P_KES, P_CES, P_XMIN, P_XMAX = 26, 27, 28, 29
 P_TMAX, P_TAU, P_AB, P_FP, P_KP = 30, 31, 32, 33, 34
 P_FEXT = 35
-NP = 36
+P_ZCUT = 36                                  # Stribeck cut-off, see _stribeck_cut
+NP = 37
 
 # State vector layout --------------------------------------------------------
 S_QM, S_WM, S_Q, S_DQ, S_XA, S_VA, S_XB, S_VB, S_TE, S_T = range(10)
@@ -256,13 +257,79 @@ def _box1(w, v0, lim, mode):
 
 
 @njit(cache=True, error_model='numpy', _nrt=False)
+def _solve2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
+    """
+    Two friction elements in the given modes: (p1, p2, consistent).
+
+    The same arithmetic as _solve_free with n = 2 (regularised diagonal,
+    partial pivoting), so both give bit-identical impulses.
+    """
+    p1 = m1 * l1 if m1 != 0 else 0.0
+    p2 = m2 * l2 if m2 != 0 else 0.0
+    if m1 == 0 and m2 == 0:
+        a00 = w11 + (1e-12 * w11 + 1e-300)
+        a01 = w12
+        a10 = w12
+        a11 = w22 + (1e-12 * w22 + 1e-300)
+        r0 = -v1
+        r1 = -v2
+        if abs(a10) > abs(a00):
+            a00, a10 = a10, a00
+            a01, a11 = a11, a01
+            r0, r1 = r1, r0
+        fct = a10 / a00
+        a11 -= fct * a01
+        r1 -= fct * r0
+        p2 = r1 / a11
+        p1 = (r0 - a01 * p2) / a00
+    elif m1 == 0:
+        p1 = (-v1 - w12 * p2) / (w11 + (1e-12 * w11 + 1e-300))
+    elif m2 == 0:
+        p2 = (-v2 - w12 * p1) / (w22 + (1e-12 * w22 + 1e-300))
+    if m1 == 0:
+        if abs(p1) > l1 * (1.0 + 1e-9):
+            return p1, p2, False
+    elif m1 * (v1 + w11 * p1 + w12 * p2) > 1e-9 * (abs(v1) + w11 * l1) + 1e-300:
+        return p1, p2, False
+    if m2 == 0:
+        if abs(p2) > l2 * (1.0 + 1e-9):
+            return p1, p2, False
+    elif m2 * (v2 + w12 * p1 + w22 * p2) > 1e-9 * (abs(v2) + w22 * l2) + 1e-300:
+        return p1, p2, False
+    return p1, p2, True
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def _box2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
+    """Two friction elements: (p1, p2, mode1, mode2, searched), as _friction_lcp."""
+    p1, p2, ok = _solve2(w11, w12, w22, v1, v2, l1, l2, m1, m2)
+    if ok:
+        return p1, p2, m1, m2, False
+    for code in range(9):
+        t1 = code % 3 - 1
+        t2 = code // 3 - 1
+        p1, p2, ok = _solve2(w11, w12, w22, v1, v2, l1, l2, t1, t2)
+        if ok:
+            return p1, p2, t1, t2, True
+    return p1, p2, m1, m2, True
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
+def _thread_limit(e, h, cl, muk, muv, drop, vst, dst, zcut, rc, sl, un1, un2, un3, na, nb):
+    """Exact impulse limit [N s] of thread A (e = 0) or B (e = 1) in a substep h."""
+    if e == 0:
+        return h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+    return h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb / cl
+
+
+@njit(cache=True, error_model='numpy', _nrt=False)
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
     Advance the state S by exactly dt in nsub equal substeps.
 
     t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
     force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
-    became non-finite (S is then left at the last finite substep).
+    became non-finite (S and out are then left as they were before the call).
 
     The state lives in local scalars for the whole step (written back once);
     a single active friction element is solved in closed form (_box1), more
@@ -293,7 +360,7 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     drop = P[P_MUS] - P[P_MUK]
     vst = P[P_VST]
     dst = P[P_DST]
-    zcut = _stribeck_cut(muk, drop, dst)
+    zcut = P[P_ZCUT]
     fp = P[P_FP]
     kp = P[P_KP]
     bb = P[P_B]
@@ -312,6 +379,7 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     w02 = rc * mi1
     w03 = sl * mi2
     w11 = rc * rc * mi1 + sl * sl * mi3
+    wtab = (w00, w01, w02, w03, w01, w11, w02, 0.0, w02, w02, mi1, 0.0, w03, 0.0, 0.0, mi2)
     tsat = min(max(t_cmd, -P[P_TMAX]), P[P_TMAX])
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     fext = P[P_FEXT] + f_in
@@ -337,9 +405,8 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     md2 = int(S[S_MODE0 + 2])
     md3 = int(S[S_MODE0 + 3])
     nsearch = S[S_NSEARCH]
-    status = 0
     pla = pua = plb = pub = 0.0
-    ffa = ffb = tbr = fg = fa_thr = 0.0
+    pa = pb = pc = pg = 0.0
     for _ in range(nsub):
         te_n = te + alpha * (tsat - te)
         f0 = 0.0
@@ -415,11 +482,12 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         u2 = u2 + h * f2 * mi2
         u3 = u3 + h * f3 * mi3
         # friction elements with a non-zero limit
-        # thread A's limit; while A is stuck, a lower bound first (la = -1: not computed),
-        # enough to confirm the stick in most substeps without exp()
+        # Friction limits. A thread warm-started stuck gets a lower bound first
+        # (limit -1: exact value not computed yet); the bound confirms most
+        # sticks without exp(), with the very impulses of the exact solve.
         na = pla + pua
-        la = 0.0
-        la_lo = 0.0
+        nb = plb + pub
+        la = lb = la_lo = lb_lo = 0.0
         if na > 0.0:
             if md0 == 0:
                 la_lo = h * _mu_lower(muk, muv, drop, vst, dst, rc * un1 + sl * un2) * na / cl
@@ -427,35 +495,91 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                 la = -1.0
             else:
                 la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
-        lb = 0.0
-        if plb + pub > 0.0:
-            lb = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * (plb + pub) / cl
-        lbr = h * (ts0 + mcr * abs(faprev))
-        n = (la != 0.0) + (lb > 0.0) + (lbr > 0.0) + (lg > 0.0)
-        pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
-        srch = False
-        if n == 1:
-            if la != 0.0:
-                vv = rc * u1 + sl * u2
-                if la < 0.0:   # stuck warm start: the stick impulse of _box1, checked on the bound
-                    pa = -vv / (w00 + (1e-12 * w00 + 1e-300))
-                    if abs(pa) > la_lo * (1.0 + 1e-9):
-                        la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
-                        pa, md0, srch = _box1(w00, vv, la, md0)
-                else:
-                    pa, md0, srch = _box1(w00, vv, la, md0)
-            elif lb > 0.0:
-                vv = rc * u1 + sl * u3
-                pb, md1, srch = _box1(w11, vv, lb, md1)
-            elif lbr > 0.0:
-                pc, md2, srch = _box1(mi1, u1, lbr, md2)
+        if nb > 0.0:
+            if md1 == 0:
+                lb_lo = h * _mu_lower(muk, muv, drop, vst, dst, rc * un1 + sl * un3) * nb / cl
+            if lb_lo > 0.0:
+                lb = -1.0
             else:
-                pg, md3, srch = _box1(mi2, u2, lg, md3)
+                lb = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb / cl
+        lbr = h * (ts0 + mcr * abs(faprev))
+        n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
+        pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
+        if n == 1 and la != 0.0:   # thread A alone, the common case, without the tables below
+            vv = rc * u1 + sl * u2
+            srch = False
+            if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                pa = -vv / (w00 + (1e-12 * w00 + 1e-300))
+                if abs(pa) > la_lo * (1.0 + 1e-9):
+                    la = _thread_limit(0, h, cl, muk, muv, drop, vst, dst, zcut,
+                                       rc, sl, un1, un2, un3, na, nb)
+                    pa, md0, srch = _box1(w00, vv, la, 0)
+            else:
+                pa, md0, srch = _box1(w00, vv, la, md0)
             if srch:
                 nsearch += 1.0
-        elif n > 1:   # the general box LCP on the workspace arrays
+        elif 0 < n <= 2:
+            # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
+            lims = (la, lb, lbr, lg)
+            los = (la_lo, lb_lo, lbr, lg)
+            vels = (rc * u1 + sl * u2, rc * u1 + sl * u3, u1, u2)
+            modes = (md0, md1, md2, md3)
+            e1 = 0 if la != 0.0 else (1 if lb != 0.0 else (2 if lbr > 0.0 else 3))
+            e2 = -1
+            if n == 2:
+                e2 = 3 if lg > 0.0 else (2 if lbr > 0.0 else 1)
+            l1 = lims[e1]
+            v1 = vels[e1]
+            w1 = wtab[5 * e1]
+            srch = False
+            if n == 1:
+                if l1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                    p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
+                    m1 = 0
+                    if abs(p1) > los[e1] * (1.0 + 1e-9):
+                        l1 = _thread_limit(e1, h, cl, muk, muv, drop, vst, dst, zcut,
+                                           rc, sl, un1, un2, un3, na, nb)
+                        p1, m1, srch = _box1(w1, v1, l1, 0)
+                else:
+                    p1, m1, srch = _box1(w1, v1, l1, modes[e1])
+                p2 = 0.0
+                m2 = 0
+            else:
+                l2 = lims[e2]
+                v2 = vels[e2]
+                w2 = wtab[5 * e2]
+                w12 = wtab[4 * e1 + e2]
+                ok = False
+                if (l1 < 0.0 or l2 < 0.0) and modes[e1] == 0 and modes[e2] == 0:
+                    p1, p2, ok = _solve2(w1, w12, w2, v1, v2, los[e1], los[e2], 0, 0)
+                    m1 = 0
+                    m2 = 0
+                if not ok:
+                    if l1 < 0.0:
+                        l1 = _thread_limit(e1, h, cl, muk, muv, drop, vst, dst, zcut,
+                                           rc, sl, un1, un2, un3, na, nb)
+                    if l2 < 0.0:
+                        l2 = _thread_limit(e2, h, cl, muk, muv, drop, vst, dst, zcut,
+                                           rc, sl, un1, un2, un3, na, nb)
+                    p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
+                                                 modes[e1], modes[e2])
+            if srch:
+                nsearch += 1.0
+            pa = p1 if e1 == 0 else 0.0
+            pb = p1 if e1 == 1 else (p2 if e2 == 1 else 0.0)
+            pc = p1 if e1 == 2 else (p2 if e2 == 2 else 0.0)
+            pg = p1 if e1 == 3 else (p2 if e2 == 3 else 0.0)
+            md0 = m1 if e1 == 0 else md0
+            md1 = m1 if e1 == 1 else (m2 if e2 == 1 else md1)
+            md2 = m1 if e1 == 2 else (m2 if e2 == 2 else md2)
+            md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
+        elif n > 2:   # the general box LCP on the workspace arrays
             if la < 0.0:
-                la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+                la = _thread_limit(0, h, cl, muk, muv, drop, vst, dst, zcut,
+                                   rc, sl, un1, un2, un3, na, nb)
+            if lb < 0.0:
+                lb = _thread_limit(1, h, cl, muk, muv, drop, vst, dst, zcut,
+                                   rc, sl, un1, un2, un3, na, nb)
             W = wk[36:52].reshape((MAXE, MAXE))
             v0 = wk[52:56]
             lim = wk[56:60]
@@ -535,15 +659,6 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         q_n = q + h * u1
         xa_n = xa + h * u2
         xb_n = xb + h * u3
-        if not (math.isfinite(qm_n) and math.isfinite(q_n) and math.isfinite(xa_n)
-                and math.isfinite(xb_n) and math.isfinite(u0) and math.isfinite(u1)
-                and math.isfinite(u2) and math.isfinite(u3) and math.isfinite(te_n)):
-            u0 = un0
-            u1 = un1
-            u2 = un2
-            u3 = un3
-            status = 1
-            break
         # energy bookkeeping with the mid-step velocities
         ub0 = 0.5 * (un0 + u0)
         ub1 = 0.5 * (un1 + u1)
@@ -572,20 +687,32 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         edamp += h * damp_pow
         efric -= (pa * (rc * ub1 + sl * ub2) + pb * (rc * ub1 + sl * ub3)
                   + pc * ub1 + pg * ub2)
-        ffa = pa / h
-        ffb = pb / h
-        tbr = pc / h
-        fg = pg / h
-        fa_thr = (pla - pua) + ffa * sl
-        if ab:
-            fa_thr += (plb - pub) + ffb * sl
-        faprev = fa_thr
+        if mcr > 0.0:   # the next collar limit needs this substep's axial thread force
+            faprev = (pla - pua) + (pa / h) * sl
+            if ab:
+                faprev += (plb - pub) + (pb / h) * sl
         qm = qm_n
         q = q_n
         xa = xa_n
         xb = xb_n
         te = te_n
         t += h
+    # friction forces [N, N m] and the axial thread force of the last substep
+    ffa = pa / h
+    ffb = pb / h
+    tbr = pc / h
+    fg = pg / h
+    fa_thr = (pla - pua) + ffa * sl
+    if ab:
+        fa_thr += (plb - pub) + ffb * sl
+    faprev = fa_thr
+    # A non-finite value in a position, velocity or the motor torque stays non-finite
+    # in every later substep (each is updated as x + increment), so one check per step
+    # finds it; S and out are then left as they were at the start of the step.
+    if not (math.isfinite(qm) and math.isfinite(q) and math.isfinite(xa) and math.isfinite(xb)
+            and math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)
+            and math.isfinite(u3) and math.isfinite(te)):
+        return 1
     # write the state back once
     S[S_QM] = qm
     S[S_WM] = u0
@@ -607,8 +734,6 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     S[S_MODE0 + 2] = md2
     S[S_MODE0 + 3] = md3
     S[S_NSEARCH] = nsearch
-    if status:
-        return 1
     # outputs of the last substep
     out[O_NLA] = pla / cl
     out[O_NUA] = pua / cl

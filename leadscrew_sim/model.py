@@ -90,6 +90,7 @@ def pack_params(p):
     v[K.P_FP] = p.preload_force
     v[K.P_KP] = p.preload_stiffness
     v[K.P_FEXT] = p.external_force
+    v[K.P_ZCUT] = K._stribeck_cut(v[K.P_MUK], v[K.P_MUS] - v[K.P_MUK], v[K.P_DST])
     return v
 
 
