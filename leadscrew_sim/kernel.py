@@ -197,28 +197,27 @@ def _mu(muk, muv, drop, vst, dst, zcut, v):
 
 
 @njit(cache=True, error_model='numpy', _nrt=False)
-def _mu_lower(muk, muv, drop, vst, dst, v):
+def _mu_lower(muk, muv, drop, ivst, dst, v):
     """
-    A lower bound of _mu(v) that needs no exp(): exp(-z) >= max(0, 1 - z).
+    Return a lower bound of _mu(v) without exp() or division: exp(-z) >= max(0, 1 - z).
 
-    The 1e-15 |drop| margin covers the rounding of 1 - z against that of
-    exp(-z); every later operation rounds monotonically, so a limit computed
-    from this bound never exceeds the one computed from _mu.
+    ivst = 1 / v_st. The 2e-15 |drop| margin (9 ulp) covers the rounding of
+    1 - z and of the reciprocal against that of exp(-z) in _mu.
     """
     mu = muk + muv * abs(v)
     if drop > 0.0:
-        z = abs(v) / vst
+        z = abs(v) * ivst
         if dst == 1.0 and z < 1.0:
-            mu += drop * (1.0 - z) - 1e-15 * drop
+            mu += drop * (1.0 - z) - 2e-15 * drop
     elif drop < 0.0:
-        mu += drop + 1e-15 * drop
+        mu += drop + 2e-15 * drop
     return mu
 
 
 @njit(cache=True, error_model='numpy', _nrt=False)
 def _stribeck_cut(muk, drop, dst):
     """
-    The |v| / v_st above which |drop| exp(-z) < mu_k 2**-54 (half an ulp of mu_k).
+    Return the |v| / v_st above which |drop| exp(-z) < mu_k 2**-54 (half an ulp of mu_k).
 
     37.5 > 54 ln 2 = 37.43; returns inf where no cut is safe (mu_k = 0).
     """
@@ -322,7 +321,7 @@ def _thread_limit(e, h, cl, muk, muv, drop, vst, dst, zcut, rc, sl, un1, un2, un
     return h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb / cl
 
 
-@njit(cache=True, error_model='numpy', _nrt=False)
+@njit(cache=True, error_model='numpy', _nrt=False, inline='always')
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
     Advance the state S by exactly dt in nsub equal substeps.
@@ -361,6 +360,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     vst = P[P_VST]
     dst = P[P_DST]
     zcut = P[P_ZCUT]
+    ivst = 1.0 / vst
+    # h / cos(lambda) less 1e-14: the bounds' limits then stay below the exact ones
+    # (computed as h mu N / cos(lambda)) whatever the rounding of either
+    hcl_lo = (h / cl) * (1.0 - 1e-14)
     fp = P[P_FP]
     kp = P[P_KP]
     bb = P[P_B]
@@ -407,6 +410,7 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     nsearch = S[S_NSEARCH]
     pla = pua = plb = pub = 0.0
     pa = pb = pc = pg = 0.0
+    a_in = a_ext = a_damp = a_fric = 0.0   # energy sums of the step (see below)
     for _ in range(nsub):
         te_n = te + alpha * (tsat - te)
         f0 = 0.0
@@ -477,10 +481,12 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         un1 = u1
         un2 = u2
         un3 = u3
-        u0 = u0 + h * f0 * mi0
+        if not rigid:
+            u0 = u0 + h * f0 * mi0
         u1 = u1 + h * f1 * mi1
         u2 = u2 + h * f2 * mi2
-        u3 = u3 + h * f3 * mi3
+        if ab:
+            u3 = u3 + h * f3 * mi3
         # friction elements with a non-zero limit
         # Friction limits. A thread warm-started stuck gets a lower bound first
         # (limit -1: exact value not computed yet); the bound confirms most
@@ -490,14 +496,14 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         la = lb = la_lo = lb_lo = 0.0
         if na > 0.0:
             if md0 == 0:
-                la_lo = h * _mu_lower(muk, muv, drop, vst, dst, rc * un1 + sl * un2) * na / cl
+                la_lo = _mu_lower(muk, muv, drop, ivst, dst, rc * un1 + sl * un2) * na * hcl_lo
             if la_lo > 0.0:
                 la = -1.0
             else:
                 la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
         if nb > 0.0:
             if md1 == 0:
-                lb_lo = h * _mu_lower(muk, muv, drop, vst, dst, rc * un1 + sl * un3) * nb / cl
+                lb_lo = _mu_lower(muk, muv, drop, ivst, dst, rc * un1 + sl * un3) * nb * hcl_lo
             if lb_lo > 0.0:
                 lb = -1.0
             else:
@@ -505,7 +511,8 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         lbr = h * (ts0 + mcr * abs(faprev))
         n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
         pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
-        if n == 1 and la != 0.0:   # thread A alone, the common case, without the tables below
+        a_only = n == 1 and la != 0.0
+        if a_only:   # thread A alone, the common case, without the tables below
             vv = rc * u1 + sl * u2
             srch = False
             if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
@@ -643,7 +650,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                 else:
                     md3 = mode[a]
                     pg = p[a]
-        if n > 0:   # element by element, in element order (adding 0 changes nothing)
+        if a_only:
+            u1 += rc * pa * mi1
+            u2 += sl * pa * mi2
+        elif n > 0:   # element by element, in element order (adding 0 changes nothing)
             u1 += rc * pa * mi1
             u2 += sl * pa * mi2
             u1 += rc * pb * mi1
@@ -659,34 +669,37 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         q_n = q + h * u1
         xa_n = xa + h * u2
         xb_n = xb + h * u3
-        # energy bookkeeping with the mid-step velocities
-        ub0 = 0.5 * (un0 + u0)
-        ub1 = 0.5 * (un1 + u1)
-        ub2 = 0.5 * (un2 + u2)
-        ub3 = 0.5 * (un3 + u3)
-        win += h * te_n * (ub1 if rigid else ub0)
-        wext += h * fext * ub2
-        damp_pow = cs * un1 * ub1 + cx * un2 * ub2
+        # energy bookkeeping with the mid-step velocities (un + u) / 2, summed over the
+        # step and scaled once at its end
+        s0 = un0 + u0
+        s1 = un1 + u1
+        s2 = un2 + u2
+        s3 = un3 + u3
+        a_in += te_n * (s1 if rigid else s0)
+        a_ext += s2
+        dp = cs * un1 * s1 + cx * un2 * s2
         if not rigid:
-            damp_pow += cc * (un0 - un1) * (ub0 - ub1)
-        ddm = ub2 - rt * ub1
+            dp += cc * (un0 - un1) * (s0 - s1)
+        ddm = s2 - rt * s1
         if ela > 0.0:
-            damp_pow += (pla - k * ela) * (-ddm)
+            dp -= (pla - k * ela) * ddm
         if eua > 0.0:
-            damp_pow += (pua - k * eua) * ddm
+            dp += (pua - k * eua) * ddm
         if pen > 0.0:
-            damp_pow += (fes_lo - kes * pen) * (-ub2)
+            dp -= (fes_lo - kes * pen) * s2
         if pen2 > 0.0:
-            damp_pow += (fes_hi - kes * pen2) * ub2
+            dp += (fes_hi - kes * pen2) * s2
         if ab:
-            ddmb = ub3 - rt * ub1
+            ddmb = s3 - rt * s1
             if elb > 0.0:
-                damp_pow += (plb - k * elb) * (-ddmb)
+                dp -= (plb - k * elb) * ddmb
             if eub > 0.0:
-                damp_pow += (pub - k * eub) * ddmb
-        edamp += h * damp_pow
-        efric -= (pa * (rc * ub1 + sl * ub2) + pb * (rc * ub1 + sl * ub3)
-                  + pc * ub1 + pg * ub2)
+                dp += (pub - k * eub) * ddmb
+        a_damp += dp
+        if a_only:
+            a_fric += pa * (rc * s1 + sl * s2)
+        elif n > 0:
+            a_fric += pa * (rc * s1 + sl * s2) + pb * (rc * s1 + sl * s3) + pc * s1 + pg * s2
         if mcr > 0.0:   # the next collar limit needs this substep's axial thread force
             faprev = (pla - pua) + (pa / h) * sl
             if ab:
@@ -697,6 +710,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         xb = xb_n
         te = te_n
         t += h
+    win += 0.5 * h * a_in
+    wext += 0.5 * h * fext * a_ext
+    edamp += 0.5 * h * a_damp
+    efric -= 0.5 * a_fric
     # friction forces [N, N m] and the axial thread force of the last substep
     ffa = pa / h
     ffb = pb / h

@@ -265,21 +265,23 @@ class LeadScrewModel:
             raise ValueError('torques and external_forces must be finite and of equal length')
         if self.fault:
             raise FloatingPointError(self.fault)
-        rec = np.zeros((len(tq), K.REC_STATE + K.NO))
+        rec = np.empty((len(tq), K.REC_STATE + K.NO))
         hs = self.params.hand_sign
-        done = K.run_series(self._P, self.state, self.out, hs * tq, fe, self.dt, self.nsub,
-                            self._wk, self._iwk, rec)
+        done = K.run_series(self._P, self.state, self.out, tq if hs == 1 else -tq, fe,
+                            self.dt, self.nsub, self._wk, self._iwk, rec)
         if done < len(tq):
             self.fault = f'non-finite state at step {done}; integration stopped'
         r = rec[:done]
-        res = dict(
-            time=r[:, K.S_T], screw_angle=hs * r[:, K.S_Q], screw_velocity=hs * r[:, K.S_DQ],
-            motor_angle=hs * r[:, K.S_QM], motor_velocity=hs * r[:, K.S_WM],
-            nut_position=r[:, K.S_XA], nut_velocity=r[:, K.S_VA])
+
+        def hand(col):   # a q-sense column in the physical sense (a view for right hand)
+            return r[:, col] if hs == 1 else -r[:, col]
         o = K.REC_STATE
-        res.update(
-            motor_torque=hs * r[:, o + K.O_TE], axial_force=r[:, o + K.O_FAX],
-            thread_torque=hs * r[:, o + K.O_TTH], friction_force=r[:, o + K.O_FFA],
+        res = dict(
+            time=r[:, K.S_T], screw_angle=hand(K.S_Q), screw_velocity=hand(K.S_DQ),
+            motor_angle=hand(K.S_QM), motor_velocity=hand(K.S_WM),
+            nut_position=r[:, K.S_XA], nut_velocity=r[:, K.S_VA],
+            motor_torque=hand(o + K.O_TE), axial_force=r[:, o + K.O_FAX],
+            thread_torque=hand(o + K.O_TTH), friction_force=r[:, o + K.O_FFA],
             normal_leading=r[:, o + K.O_NLA], normal_trailing=r[:, o + K.O_NUA],
             sliding_velocity=r[:, o + K.O_VSA], contact=r[:, o + K.O_CONTA].astype(int),
             stuck=r[:, o + K.O_STICKA] == 1.0)
