@@ -314,11 +314,11 @@ def _box2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
 
 
 @njit(cache=True, error_model='numpy', _nrt=False)
-def _thread_limit(e, h, cl, muk, muv, drop, vst, dst, zcut, rc, sl, un1, un2, un3, na, nb):
-    """Exact impulse limit [N s] of thread A (e = 0) or B (e = 1) in a substep h."""
+def _thread_limit(e, hcl, muk, muv, drop, vst, dst, zcut, rc, sl, un1, un2, un3, na, nb):
+    """Exact impulse limit [N s] of thread A (e = 0) or B (e = 1); hcl = h / cos(lambda)."""
     if e == 0:
-        return h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
-    return h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb / cl
+        return _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na * hcl
+    return _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb * hcl
 
 
 @njit(cache=True, error_model='numpy', _nrt=False, inline='always')
@@ -361,9 +361,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     dst = P[P_DST]
     zcut = P[P_ZCUT]
     ivst = 1.0 / vst
-    # h / cos(lambda) less 1e-14: the bounds' limits then stay below the exact ones
-    # (computed as h mu N / cos(lambda)) whatever the rounding of either
-    hcl_lo = (h / cl) * (1.0 - 1e-14)
+    # Limits are mu' N h / cos(lambda); the stick bound uses h / cos(lambda) less 1e-14,
+    # so its limit stays below the exact one whatever the rounding of either.
+    hcl = h / cl
+    hcl_lo = hcl * (1.0 - 1e-14)
     fp = P[P_FP]
     kp = P[P_KP]
     bb = P[P_B]
@@ -382,6 +383,11 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     w02 = rc * mi1
     w03 = sl * mi2
     w11 = rc * rc * mi1 + sl * sl * mi3
+    hmi0 = h * mi0   # velocity change per unit force in one substep [1/(kg m^2) s, 1/kg s]
+    hmi1 = h * mi1
+    hmi2 = h * mi2
+    hmi3 = h * mi3
+    niden0 = -1.0 / (w00 + (1e-12 * w00 + 1e-300))
     wtab = (w00, w01, w02, w03, w01, w11, w02, 0.0, w02, w02, mi1, 0.0, w03, 0.0, 0.0, mi2)
     tsat = min(max(t_cmd, -P[P_TMAX]), P[P_TMAX])
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
@@ -482,11 +488,11 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         un2 = u2
         un3 = u3
         if not rigid:
-            u0 = u0 + h * f0 * mi0
-        u1 = u1 + h * f1 * mi1
-        u2 = u2 + h * f2 * mi2
+            u0 = u0 + f0 * hmi0
+        u1 = u1 + f1 * hmi1
+        u2 = u2 + f2 * hmi2
         if ab:
-            u3 = u3 + h * f3 * mi3
+            u3 = u3 + f3 * hmi3
         # friction elements with a non-zero limit
         # Friction limits. A thread warm-started stuck gets a lower bound first
         # (limit -1: exact value not computed yet); the bound confirms most
@@ -500,14 +506,14 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             if la_lo > 0.0:
                 la = -1.0
             else:
-                la = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na / cl
+                la = _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na * hcl
         if nb > 0.0:
             if md1 == 0:
                 lb_lo = _mu_lower(muk, muv, drop, ivst, dst, rc * un1 + sl * un3) * nb * hcl_lo
             if lb_lo > 0.0:
                 lb = -1.0
             else:
-                lb = h * _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb / cl
+                lb = _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb * hcl
         lbr = h * (ts0 + mcr * abs(faprev))
         n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
         pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
@@ -516,9 +522,9 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             vv = rc * u1 + sl * u2
             srch = False
             if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                pa = -vv / (w00 + (1e-12 * w00 + 1e-300))
+                pa = vv * niden0
                 if abs(pa) > la_lo * (1.0 + 1e-9):
-                    la = _thread_limit(0, h, cl, muk, muv, drop, vst, dst, zcut,
+                    la = _thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut,
                                        rc, sl, un1, un2, un3, na, nb)
                     pa, md0, srch = _box1(w00, vv, la, 0)
             else:
@@ -544,7 +550,7 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                     p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
                     m1 = 0
                     if abs(p1) > los[e1] * (1.0 + 1e-9):
-                        l1 = _thread_limit(e1, h, cl, muk, muv, drop, vst, dst, zcut,
+                        l1 = _thread_limit(e1, hcl, muk, muv, drop, vst, dst, zcut,
                                            rc, sl, un1, un2, un3, na, nb)
                         p1, m1, srch = _box1(w1, v1, l1, 0)
                 else:
@@ -563,10 +569,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                     m2 = 0
                 if not ok:
                     if l1 < 0.0:
-                        l1 = _thread_limit(e1, h, cl, muk, muv, drop, vst, dst, zcut,
+                        l1 = _thread_limit(e1, hcl, muk, muv, drop, vst, dst, zcut,
                                            rc, sl, un1, un2, un3, na, nb)
                     if l2 < 0.0:
-                        l2 = _thread_limit(e2, h, cl, muk, muv, drop, vst, dst, zcut,
+                        l2 = _thread_limit(e2, hcl, muk, muv, drop, vst, dst, zcut,
                                            rc, sl, un1, un2, un3, na, nb)
                     p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
                                                  modes[e1], modes[e2])
@@ -582,10 +588,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
         elif n > 2:   # the general box LCP on the workspace arrays
             if la < 0.0:
-                la = _thread_limit(0, h, cl, muk, muv, drop, vst, dst, zcut,
+                la = _thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut,
                                    rc, sl, un1, un2, un3, na, nb)
             if lb < 0.0:
-                lb = _thread_limit(1, h, cl, muk, muv, drop, vst, dst, zcut,
+                lb = _thread_limit(1, hcl, muk, muv, drop, vst, dst, zcut,
                                    rc, sl, un1, un2, un3, na, nb)
             W = wk[36:52].reshape((MAXE, MAXE))
             v0 = wk[52:56]
@@ -651,8 +657,8 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                     md3 = mode[a]
                     pg = p[a]
         if a_only:
-            u1 += rc * pa * mi1
-            u2 += sl * pa * mi2
+            u1 += pa * w02
+            u2 += pa * w03
         elif n > 0:   # element by element, in element order (adding 0 changes nothing)
             u1 += rc * pa * mi1
             u2 += sl * pa * mi2

@@ -123,8 +123,10 @@ def test_stick_bound_never_exceeds_exact_limit():
         v = rng.choice([0.0, 1.0, -1.0]) * 10.0 ** rng.uniform(-18, 0) * vst * 3
         h, cl, na = 10.0 ** rng.uniform(-6, -3), rng.uniform(0.8, 1.0), 10.0 ** rng.uniform(-3, 5)
         zcut = K._stribeck_cut(muk, drop, dst)
-        exact = h * K._mu(muk, muv, drop, vst, dst, zcut, v) * na / cl
-        bound = K._mu_lower(muk, muv, drop, 1.0 / vst, dst, v) * na * ((h / cl) * (1.0 - 1e-14))
+        hcl = h / cl
+        exact = K._thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut, 1.0, 0.0, v, 0.0, 0.0,
+                                na, 0.0)
+        bound = K._mu_lower(muk, muv, drop, 1.0 / vst, dst, v) * na * (hcl * (1.0 - 1e-14))
         assert bound <= exact
 
 
