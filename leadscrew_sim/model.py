@@ -238,12 +238,10 @@ class LeadScrewModel:
             dt, n = self.dt, self.nsub
         else:
             n = self.substeps_for(dt)
-        backup = self.state.copy()
         rc = K.step(self._P, self.state, self.out, self._P_hand() * torque,
                     float(external_force), float(dt), n, self._wk, self._iwk)
-        if rc != 0:
-            self.state[:] = backup
-            self.fault = (f'non-finite state at t={backup[K.S_T]:.6f} s '
+        if rc != 0:   # the kernel left the state as it was before this step
+            self.fault = (f'non-finite state at t={self.state[K.S_T]:.6f} s '
                           f'(torque {torque} N m); integration stopped')
             raise FloatingPointError(self.fault)
 

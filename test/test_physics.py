@@ -12,6 +12,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from leadscrew_sim import geometry as G
+from leadscrew_sim import kernel as K
 from leadscrew_sim import LeadScrewModel, load_preset, ParameterError, ScrewParams
 
 INCH = 0.0254
@@ -353,3 +354,24 @@ def test_joint_values_are_the_output_fields(hand):
         assert all(type(g) is float for g in got)
         assert [np.float64(g).tobytes() for g in got] == [np.float64(w).tobytes() for w in want]
     assert any(v != 0.0 for v in got)
+
+
+def test_nonfinite_state_is_a_fault_and_keeps_the_last_finite_state():
+    """A state that overflows stops the model; the state stays at the last finite step."""
+    for batch in (False, True):
+        m = LeadScrewModel(load_preset('tr8x8'))
+        m.advance(0.05)
+        m.state[K.S_VA] = 1e308          # the next substep's position update overflows
+        before = m.state.copy()
+        with pytest.raises(FloatingPointError, match='non-finite state'):
+            if batch:
+                m.run(np.zeros(5))
+            else:
+                m.advance(0.05)
+        assert np.array_equal(m.state, before)
+        assert np.isfinite(m.state).all()
+        with pytest.raises(FloatingPointError):   # integration stays stopped
+            m.advance(0.0)
+        m.reset()
+        m.advance(0.0)                             # until reset
+        assert np.isfinite(m.state).all()
