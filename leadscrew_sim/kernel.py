@@ -321,11 +321,27 @@ def _box2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
 
 
 @njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _thread_limit(e, hcl, muk, muv, drop, vst, dst, zcut, rc, sl, un1, un2, un3, na, nb):
-    """Exact impulse limit [N s] of thread A (e = 0) or B (e = 1); hcl = h / cos(lambda)."""
-    if e == 0:
-        return _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na * hcl
-    return _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb * hcl
+def _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl):
+    """Exact impulse limit [N s] of a thread: mu'(vs) load h / cos(lambda); hcl = h / cos."""
+    return _mu(muk, muv, drop, vst, dst, zcut, vs) * load * hcl
+
+
+@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hcl_lo):
+    """
+    Return (limit, lower bound) [N s] of a thread's friction impulse.
+
+    A thread warm-started stuck (mode 0) gets the exp-free lower bound only,
+    and limit -1 (not computed yet): the bound confirms most sticks, with the
+    very impulse of the exact solve. No load: (0, 0), the thread is inactive.
+    """
+    if load <= 0.0:
+        return 0.0, 0.0
+    if mode == 0:
+        lo = _mu_lower(muk, muv, drop, ivst, dst, vs) * load * hcl_lo
+        if lo > 0.0:
+            return -1.0, lo
+    return _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl), 0.0
 
 
 @njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False, inline='always')
@@ -337,9 +353,10 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
     became non-finite (S and out are then left as they were before the call).
 
-    The state lives in local scalars for the whole step (written back once);
-    a single active friction element is solved in closed form (_box1), more
-    than one by the exact box LCP on the workspace arrays.
+    The state lives in local scalars for the whole step (written back once).
+    One or two active friction elements are solved by the scalar _box1/_box2,
+    three or four by the general box LCP on the workspace arrays; all give
+    the same impulses (test/test_kernel_lcp.py).
     """
     h = dt / nsub
     rigid = P[P_RIGID] > 0.5
@@ -500,27 +517,15 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
         u2 = u2 + f2 * hmi2
         if ab:
             u3 = u3 + f3 * hmi3
-        # friction elements with a non-zero limit
-        # Friction limits. A thread warm-started stuck gets a lower bound first
-        # (limit -1: exact value not computed yet); the bound confirms most
-        # sticks without exp(), with the very impulses of the exact solve.
+        # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
         na = pla + pua
         nb = plb + pub
-        la = lb = la_lo = lb_lo = 0.0
-        if na > 0.0:
-            if md0 == 0:
-                la_lo = _mu_lower(muk, muv, drop, ivst, dst, rc * un1 + sl * un2) * na * hcl_lo
-            if la_lo > 0.0:
-                la = -1.0
-            else:
-                la = _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un2) * na * hcl
-        if nb > 0.0:
-            if md1 == 0:
-                lb_lo = _mu_lower(muk, muv, drop, ivst, dst, rc * un1 + sl * un3) * nb * hcl_lo
-            if lb_lo > 0.0:
-                lb = -1.0
-            else:
-                lb = _mu(muk, muv, drop, vst, dst, zcut, rc * un1 + sl * un3) * nb * hcl
+        vsa = rc * un1 + sl * un2
+        vsb = rc * un1 + sl * un3
+        la, la_lo = _thread_limits(na, md0, vsa, muk, muv, drop, vst, ivst, dst, zcut,
+                                   hcl, hcl_lo)
+        lb, lb_lo = _thread_limits(nb, md1, vsb, muk, muv, drop, vst, ivst, dst, zcut,
+                                   hcl, hcl_lo)
         lbr = h * (ts0 + mcr * abs(faprev))
         n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
         pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
@@ -531,8 +536,7 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
                 pa = vv * niden0
                 if abs(pa) > la_lo * (1.0 + 1e-9):
-                    la = _thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut,
-                                       rc, sl, un1, un2, un3, na, nb)
+                    la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
                     pa, md0, srch = _box1(w00, vv, la, 0)
             else:
                 pa, md0, srch = _box1(w00, vv, la, md0)
@@ -557,8 +561,8 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                     p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
                     m1 = 0
                     if abs(p1) > los[e1] * (1.0 + 1e-9):
-                        l1 = _thread_limit(e1, hcl, muk, muv, drop, vst, dst, zcut,
-                                           rc, sl, un1, un2, un3, na, nb)
+                        l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
+                                           muk, muv, drop, vst, dst, zcut, hcl)
                         p1, m1, srch = _box1(w1, v1, l1, 0)
                 else:
                     p1, m1, srch = _box1(w1, v1, l1, modes[e1])
@@ -576,11 +580,11 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
                     m2 = 0
                 if not ok:
                     if l1 < 0.0:
-                        l1 = _thread_limit(e1, hcl, muk, muv, drop, vst, dst, zcut,
-                                           rc, sl, un1, un2, un3, na, nb)
+                        l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
+                                           muk, muv, drop, vst, dst, zcut, hcl)
                     if l2 < 0.0:
-                        l2 = _thread_limit(e2, hcl, muk, muv, drop, vst, dst, zcut,
-                                           rc, sl, un1, un2, un3, na, nb)
+                        l2 = _thread_limit(na if e2 == 0 else nb, vsa if e2 == 0 else vsb,
+                                           muk, muv, drop, vst, dst, zcut, hcl)
                     p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
                                                  modes[e1], modes[e2])
             if srch:
@@ -595,11 +599,9 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
             md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
         elif n > 2:   # the general box LCP on the workspace arrays
             if la < 0.0:
-                la = _thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut,
-                                   rc, sl, un1, un2, un3, na, nb)
+                la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
             if lb < 0.0:
-                lb = _thread_limit(1, hcl, muk, muv, drop, vst, dst, zcut,
-                                   rc, sl, un1, un2, un3, na, nb)
+                lb = _thread_limit(nb, vsb, muk, muv, drop, vst, dst, zcut, hcl)
             W = wk[36:52].reshape((MAXE, MAXE))
             v0 = wk[52:56]
             lim = wk[56:60]

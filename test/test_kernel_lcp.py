@@ -112,7 +112,7 @@ def test_box2_equals_array_lcp_and_solves_it():
 
 
 def test_stick_bound_never_exceeds_exact_limit():
-    """_mu_lower (no exp) with the kernel's h/cos margin stays below the exact limit."""
+    """The stick bound (no exp, h/cos margin) stays below the exact limit."""
     rng = np.random.default_rng(RNG_SEED + 2)
     for _ in range(20000):
         muk = rng.uniform(0.0, 0.6)
@@ -124,10 +124,13 @@ def test_stick_bound_never_exceeds_exact_limit():
         h, cl, na = 10.0 ** rng.uniform(-6, -3), rng.uniform(0.8, 1.0), 10.0 ** rng.uniform(-3, 5)
         zcut = K._stribeck_cut(muk, drop, dst)
         hcl = h / cl
-        exact = K._thread_limit(0, hcl, muk, muv, drop, vst, dst, zcut, 1.0, 0.0, v, 0.0, 0.0,
-                                na, 0.0)
-        bound = K._mu_lower(muk, muv, drop, 1.0 / vst, dst, v) * na * (hcl * (1.0 - 1e-14))
-        assert bound <= exact
+        exact = K._thread_limit(na, v, muk, muv, drop, vst, dst, zcut, hcl)
+        lim, bound = K._thread_limits(na, 0, v, muk, muv, drop, vst, 1.0 / vst, dst, zcut,
+                                      hcl, hcl * (1.0 - 1e-14))
+        if lim < 0.0:                     # the bound stands in for the limit
+            assert 0.0 < bound <= exact
+        else:                             # no usable bound: the exact limit itself
+            assert lim == exact
 
 
 def test_stribeck_cut_is_exact():
