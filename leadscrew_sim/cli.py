@@ -557,10 +557,9 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
     enc, ids = w.enc, w.ids
     t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
     t_state = t_cmd + dt_ns
-    # + 0.0: a zero motor torque is +0.0, as the node publishes it
     angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = cols
     rows = [M.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
-            enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor + 0.0, f_ax]),
+            enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor, f_ax]),
             enc.nut_position.rows(None, [x]),
             enc.thread_force.rows(t_state, [f_ax, tq_thread])]
     times = [t_cmd, t_state, t_state, t_state]
@@ -807,7 +806,7 @@ class Resim:
                 raise CliError(f'simulation fault at step {k}: {exc}') from None
             if (k + 1) % dec == 0 or keep:
                 o = model.output()
-                js, x, wr = node_values(o)
+                js, x, wr = M.StateEncoder.values(o)
                 if (k + 1) % dec == 0:
                     new_states[k + 1] = (js, x[0], wr)
                     if writer is not None:
@@ -861,16 +860,6 @@ class Resim:
     def joint_labels(self):
         """Return the two joint names."""
         return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
-
-
-def node_values(o):
-    """
-    Return StateEncoder.values(o) as the node publishes them.
-
-    The node sends ``motor_torque + 0.0`` (a zero motor torque is +0.0, never -0.0).
-    """
-    js, x, wr = M.StateEncoder.values(o)
-    return js[:4] + (js[4] + 0.0, js[5]), x, wr
 
 
 _BITS = struct.Struct('<d').pack

@@ -32,7 +32,7 @@ class StepOutput:
     nut_position: float         #: x of nut A [m]
     nut_velocity: float         #: [m/s]
     nut_b_position: float       #: x of half-nut B [m] (= x when no anti-backlash nut)
-    motor_torque: float         #: applied (saturated, lagged) motor torque [N m]
+    motor_torque: float         #: applied (saturated, lagged) motor torque [N m]; 0 is +0.0
     normal_leading: float       #: leading flank normal force of nut A [N]
     normal_trailing: float      #: trailing flank normal force of nut A [N]
     friction_force: float       #: thread friction along the flank on nut A [N]
@@ -278,7 +278,7 @@ class LeadScrewModel:
             time=r[:, K.S_T], screw_angle=hand(K.S_Q), screw_velocity=hand(K.S_DQ),
             motor_angle=hand(K.S_QM), motor_velocity=hand(K.S_WM),
             nut_position=r[:, K.S_XA], nut_velocity=r[:, K.S_VA],
-            motor_torque=hand(o + K.O_TE), axial_force=r[:, o + K.O_FAX],
+            motor_torque=hand(o + K.O_TE) + 0.0, axial_force=r[:, o + K.O_FAX],
             thread_torque=hand(o + K.O_TTH), friction_force=r[:, o + K.O_FFA],
             normal_leading=r[:, o + K.O_NLA], normal_trailing=r[:, o + K.O_NUA],
             sliding_velocity=r[:, o + K.O_VSA], contact=r[:, o + K.O_CONTA].astype(int),
@@ -305,7 +305,7 @@ class LeadScrewModel:
         [N m]): the same values as the fields of :meth:`output`.
         """
         s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
-        return (hs * s[K.S_Q], s[K.S_XA], hs * s[K.S_DQ], s[K.S_VA], hs * o[K.O_TE],
+        return (hs * s[K.S_Q], s[K.S_XA], hs * s[K.S_DQ], s[K.S_VA], hs * o[K.O_TE] + 0.0,
                 o[K.O_FAX], hs * o[K.O_TTH])
 
     def output(self):
@@ -315,7 +315,7 @@ class LeadScrewModel:
             time=s[K.S_T], motor_angle=hs * s[K.S_QM], motor_velocity=hs * s[K.S_WM],
             screw_angle=hs * s[K.S_Q], screw_velocity=hs * s[K.S_DQ],
             nut_position=s[K.S_XA], nut_velocity=s[K.S_VA], nut_b_position=s[K.S_XB],
-            motor_torque=hs * o[K.O_TE], normal_leading=o[K.O_NLA],
+            motor_torque=hs * o[K.O_TE] + 0.0, normal_leading=o[K.O_NLA],
             normal_trailing=o[K.O_NUA], friction_force=o[K.O_FFA],
             sliding_velocity=o[K.O_VSA], contact=int(o[K.O_CONTA]),
             stuck=bool(o[K.O_STICKA] == 1.0), axial_force=o[K.O_FAX],

@@ -939,8 +939,7 @@ class LeadScrewSimNode(Node):
     def _publish_states(self):
         angle, x, omega, v, torque, force, thread_torque = self.model.joint_values()
         stamp = self._sim_now()
-        # + 0.0: a zero motor torque is published as +0.0
-        data = self._ser_js(stamp, (angle, x, omega, v, torque + 0.0, force))
+        data = self._ser_js(stamp, (angle, x, omega, v, torque, force))
         self._pub_js.publish(data)
         self._record_state('js', data)
         data = self._ser_x(None, (x,))
