@@ -76,7 +76,12 @@ MAXE = 4   # friction elements: thread A, thread B, bearing/collar, guide
 
 @njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
 def mu_apparent(P, v):
-    """Apparent Stribeck friction coefficient mu'(|v|), >= 0."""
+    """
+    Apparent Stribeck friction coefficient mu'(|v|), >= 0, from the parameter vector.
+
+    The plain formula of physics.md section 6; step() uses _mu, the same law
+    with a bit-exact shortcut, tested against this one.
+    """
     a = abs(v)
     mu = P[P_MUK] + P[P_MUV] * a
     drop = P[P_MUS] - P[P_MUK]
