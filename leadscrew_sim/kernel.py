@@ -349,7 +349,7 @@ def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hc
     return _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl), 0.0
 
 
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False, inline='always')
+@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
     Advance the state S by exactly dt in nsub equal substeps.
