@@ -179,7 +179,10 @@ def _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial):
     return False
 
 
-WK_FLOAT = 104   # workspace sizes of step()
+REC_STATE = 10   # S[0:10] is recorded per step by run_series, then the NO outputs
+WK_IO = 104      # workspace of step(): 104 floats for the LCP, 2 for step()'s inputs,
+WK_REC = 106     # one scratch record row
+WK_FLOAT = WK_REC + REC_STATE + NO
 WK_INT = 16
 
 
@@ -350,18 +353,20 @@ def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hc
 
 
 @njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
+def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     """
-    Advance the state S by exactly dt in nsub equal substeps.
+    Advance S by one step of dt (nsub equal substeps) per entry of torques/forces.
 
-    t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
-    force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
-    became non-finite (S and out are then left as they were before the call).
+    torques: commanded motor torques [N m] in the q sense; forces: external
+    axial forces on nut A [N] added to the parameter one. After step i, out
+    holds its outputs and rec[i] = S[:REC_STATE] + out. Returns
+    the number of steps done; fewer if a state became non-finite, with S and
+    out as they were before the failing step.
 
-    The state lives in local scalars for the whole step (written back once).
-    One or two active friction elements are solved by the scalar _box1/_box2,
-    three or four by the general box LCP on the workspace arrays; all give
-    the same impulses (test/test_kernel_lcp.py).
+    Parameters are unpacked once per call and the state lives in local scalars
+    within a step. One or two active friction elements are solved by the
+    scalar _box1/_box2, three or four by the general box LCP on the workspace
+    arrays; all give the same impulses (test/test_kernel_lcp.py).
     """
     h = dt / nsub
     rigid = P[P_RIGID] > 0.5
@@ -418,397 +423,408 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     hmi3 = h * mi3
     niden0 = -1.0 / (w00 + (1e-12 * w00 + 1e-300))
     wtab = (w00, w01, w02, w03, w01, w11, w02, 0.0, w02, w02, mi1, 0.0, w03, 0.0, 0.0, mi2)
-    tsat = min(max(t_cmd, -P[P_TMAX]), P[P_TMAX])
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
-    fext = P[P_FEXT] + f_in
     gs = P[P_GS]
-    # state in locals
-    qm = S[S_QM]
-    q = S[S_Q]
-    xa = S[S_XA]
-    xb = S[S_XB]
-    u0 = S[S_WM]
-    u1 = S[S_DQ]
-    u2 = S[S_VA]
-    u3 = S[S_VB]
-    te = S[S_TE]
-    t = S[S_T]
-    win = S[S_WIN]
-    wext = S[S_WEXT]
-    efric = S[S_EFRIC]
-    edamp = S[S_EDAMP]
-    faprev = S[S_FAPREV]
-    md0 = int(S[S_MODE0])
-    md1 = int(S[S_MODE0 + 1])
-    md2 = int(S[S_MODE0 + 2])
-    md3 = int(S[S_MODE0 + 3])
-    nsearch = S[S_NSEARCH]
-    pla = pua = plb = pub = 0.0
-    pa = pb = pc = pg = 0.0
-    a_in = a_ext = a_damp = a_fric = 0.0   # energy sums of the step (see below)
-    for _ in range(nsub):
-        te_n = te + alpha * (tsat - te)
-        f0 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        f3 = 0.0
-        # motor and coupling
-        if rigid:
-            f1 += te_n
-        else:
-            f0 += te_n
-            tcs = kc * (qm - q)
-            tcd = cc * (u0 - u1)
-            f0 -= tcs + tcd
-            f1 += tcs + tcd
-        # bearing and guide viscous, gravity, external force
-        f1 -= cs * u1
-        f2 -= cx * u2
-        f2 += fext - ma * gs
-        if ab:
-            f3 -= mb * gs
-        # end stops on nut A (unilateral, damper never pulls)
-        fes_lo = 0.0
-        fes_hi = 0.0
-        pen = xmin - xa
-        if pen > 0.0:
-            fes_lo = max(0.0, kes * pen - ces * u2)
-            f2 += fes_lo
-        pen2 = xa - xmax
-        if pen2 > 0.0:
-            fes_hi = max(0.0, kes * pen2 + ces * u2)
-            f2 -= fes_hi
-        # thread contact of nut A
-        d = xa - rt * q
-        dd = u2 - rt * u1
-        ela = -d - hb
-        eua = d - hb
-        pla = 0.0
-        pua = 0.0
-        if ela > 0.0:
-            pla = max(0.0, k * ela - c * dd)
-        if eua > 0.0:
-            pua = max(0.0, k * eua + c * dd)
-        fna = pla - pua
-        f2 += fna
-        f1 -= rt * fna
-        plb = 0.0
-        pub = 0.0
-        elb = 0.0
-        eub = 0.0
-        if ab:
-            db = xb - rt * q
-            ddb = u3 - rt * u1
-            elb = -db - hb
-            eub = db - hb
-            if elb > 0.0:
-                plb = max(0.0, k * elb - c * ddb)
-            if eub > 0.0:
-                pub = max(0.0, k * eub + c * ddb)
-            fnb = plb - pub
-            f3 += fnb
-            f1 -= rt * fnb
-            fs = fp + kp * (bb - (xb - xa))
-            f3 += fs
-            f2 -= fs
-        # unconstrained velocity
-        un0 = u0
-        un1 = u1
-        un2 = u2
-        un3 = u3
-        if not rigid:
-            u0 = u0 + f0 * hmi0
-        u1 = u1 + f1 * hmi1
-        u2 = u2 + f2 * hmi2
-        if ab:
-            u3 = u3 + f3 * hmi3
-        # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
-        na = pla + pua
-        nb = plb + pub
-        vsa = rc * un1 + sl * un2
-        vsb = rc * un1 + sl * un3
-        la, la_lo = _thread_limits(na, md0, vsa, muk, muv, drop, vst, ivst, dst, zcut,
-                                   hcl, hcl_lo)
-        lb, lb_lo = _thread_limits(nb, md1, vsb, muk, muv, drop, vst, ivst, dst, zcut,
-                                   hcl, hcl_lo)
-        lbr = h * (ts0 + mcr * abs(faprev))
-        n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
-        pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
-        a_only = n == 1 and la != 0.0
-        if a_only:   # thread A alone, the common case, without the tables below
-            vv = rc * u1 + sl * u2
-            srch = False
-            if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                pa = vv * niden0
-                if abs(pa) > la_lo * (1.0 + 1e-9):
-                    la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
-                    pa, md0, srch = _box1(w00, vv, la, 0)
-            else:
-                pa, md0, srch = _box1(w00, vv, la, md0)
-            if srch:
-                nsearch += 1.0
-        elif 0 < n <= 2:
-            # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
-            lims = (la, lb, lbr, lg)
-            los = (la_lo, lb_lo, lbr, lg)
-            vels = (rc * u1 + sl * u2, rc * u1 + sl * u3, u1, u2)
-            modes = (md0, md1, md2, md3)
-            e1 = 0 if la != 0.0 else (1 if lb != 0.0 else (2 if lbr > 0.0 else 3))
-            e2 = -1
-            if n == 2:
-                e2 = 3 if lg > 0.0 else (2 if lbr > 0.0 else 1)
-            l1 = lims[e1]
-            v1 = vels[e1]
-            w1 = wtab[5 * e1]
-            srch = False
-            if n == 1:
-                if l1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                    p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
-                    m1 = 0
-                    if abs(p1) > los[e1] * (1.0 + 1e-9):
-                        l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
-                                           muk, muv, drop, vst, dst, zcut, hcl)
-                        p1, m1, srch = _box1(w1, v1, l1, 0)
-                else:
-                    p1, m1, srch = _box1(w1, v1, l1, modes[e1])
-                p2 = 0.0
-                m2 = 0
-            else:
-                l2 = lims[e2]
-                v2 = vels[e2]
-                w2 = wtab[5 * e2]
-                w12 = wtab[4 * e1 + e2]
-                ok = False
-                if (l1 < 0.0 or l2 < 0.0) and modes[e1] == 0 and modes[e2] == 0:
-                    p1, p2, ok = _solve2(w1, w12, w2, v1, v2, los[e1], los[e2], 0, 0)
-                    m1 = 0
-                    m2 = 0
-                if not ok:
-                    if l1 < 0.0:
-                        l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
-                                           muk, muv, drop, vst, dst, zcut, hcl)
-                    if l2 < 0.0:
-                        l2 = _thread_limit(na if e2 == 0 else nb, vsa if e2 == 0 else vsb,
-                                           muk, muv, drop, vst, dst, zcut, hcl)
-                    p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
-                                                 modes[e1], modes[e2])
-            if srch:
-                nsearch += 1.0
-            pa = p1 if e1 == 0 else 0.0
-            pb = p1 if e1 == 1 else (p2 if e2 == 1 else 0.0)
-            pc = p1 if e1 == 2 else (p2 if e2 == 2 else 0.0)
-            pg = p1 if e1 == 3 else (p2 if e2 == 3 else 0.0)
-            md0 = m1 if e1 == 0 else md0
-            md1 = m1 if e1 == 1 else (m2 if e2 == 1 else md1)
-            md2 = m1 if e1 == 2 else (m2 if e2 == 2 else md2)
-            md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
-        elif n > 2:   # the general box LCP on the workspace arrays
-            if la < 0.0:
-                la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
-            if lb < 0.0:
-                lb = _thread_limit(nb, vsb, muk, muv, drop, vst, dst, zcut, hcl)
-            W = wk[36:52].reshape((MAXE, MAXE))
-            v0 = wk[52:56]
-            lim = wk[56:60]
-            p = wk[60:64]
-            A = wk[64:80].reshape((MAXE, MAXE))
-            r = wk[80:84]
-            Wfull = wk[88:104].reshape((MAXE, MAXE))
-            mode = iwk[0:4]
-            eid = iwk[4:8]
-            idx = iwk[8:12]
-            trial = iwk[12:16]
-            Wfull[0, 0] = w00
-            Wfull[0, 1] = w01
-            Wfull[0, 2] = w02
-            Wfull[0, 3] = w03
-            Wfull[1, 1] = w11
-            Wfull[1, 2] = w02
-            Wfull[1, 3] = 0.0
-            Wfull[2, 2] = mi1
-            Wfull[2, 3] = 0.0
-            Wfull[3, 3] = mi2
-            for a in range(1, MAXE):
-                for b in range(a):
-                    Wfull[a, b] = Wfull[b, a]
-            n = 0
-            for e, le in ((0, la), (1, lb), (2, lbr), (3, lg)):
-                if le > 0.0:
-                    eid[n] = e
-                    lim[n] = le
-                    n += 1
-            for a in range(n):
-                ea = eid[a]
-                if ea == 0:
-                    mode[a] = md0
-                    v0[a] = rc * u1 + sl * u2
-                elif ea == 1:
-                    mode[a] = md1
-                    v0[a] = rc * u1 + sl * u3
-                elif ea == 2:
-                    mode[a] = md2
-                    v0[a] = u1
-                else:
-                    mode[a] = md3
-                    v0[a] = u2
-                for b in range(n):
-                    W[a, b] = Wfull[ea, eid[b]]
-            if not _solve_free(W, v0, lim, mode, n, p, A, r, idx):
-                nsearch += 1.0
-                _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial)
-            for a in range(n):
-                ea = eid[a]
-                if ea == 0:
-                    md0 = mode[a]
-                    pa = p[a]
-                elif ea == 1:
-                    md1 = mode[a]
-                    pb = p[a]
-                elif ea == 2:
-                    md2 = mode[a]
-                    pc = p[a]
-                else:
-                    md3 = mode[a]
-                    pg = p[a]
-        if a_only:
-            u1 += pa * w02
-            u2 += pa * w03
-        elif n > 0:   # element by element, in element order (adding 0 changes nothing)
-            u1 += rc * pa * mi1
-            u2 += sl * pa * mi2
-            u1 += rc * pb * mi1
-            u3 += sl * pb * mi3
-            u1 += pc * mi1
-            u2 += pg * mi2
-        if rigid:
-            u0 = u1
-        if not ab:
-            u3 = u2
-        # positions (symplectic Euler)
-        qm_n = qm + h * u0
-        q_n = q + h * u1
-        xa_n = xa + h * u2
-        xb_n = xb + h * u3
-        # energy bookkeeping with the mid-step velocities (un + u) / 2, summed over the
-        # step and scaled once at its end
-        s0 = un0 + u0
-        s1 = un1 + u1
-        s2 = un2 + u2
-        s3 = un3 + u3
-        a_in += te_n * (s1 if rigid else s0)
-        a_ext += s2
-        dp = cs * un1 * s1 + cx * un2 * s2
-        if not rigid:
-            dp += cc * (un0 - un1) * (s0 - s1)
-        ddm = s2 - rt * s1
-        if ela > 0.0:
-            dp -= (pla - k * ela) * ddm
-        if eua > 0.0:
-            dp += (pua - k * eua) * ddm
-        if pen > 0.0:
-            dp -= (fes_lo - kes * pen) * s2
-        if pen2 > 0.0:
-            dp += (fes_hi - kes * pen2) * s2
-        if ab:
-            ddmb = s3 - rt * s1
-            if elb > 0.0:
-                dp -= (plb - k * elb) * ddmb
-            if eub > 0.0:
-                dp += (pub - k * eub) * ddmb
-        a_damp += dp
-        if a_only:
-            a_fric += pa * (rc * s1 + sl * s2)
-        elif n > 0:
-            a_fric += pa * (rc * s1 + sl * s2) + pb * (rc * s1 + sl * s3) + pc * s1 + pg * s2
-        if mcr > 0.0:   # the next collar limit needs this substep's axial thread force
-            faprev = (pla - pua) + (pa / h) * sl
-            if ab:
-                faprev += (plb - pub) + (pb / h) * sl
-        qm = qm_n
-        q = q_n
-        xa = xa_n
-        xb = xb_n
-        te = te_n
-        t += h
-    win += 0.5 * h * a_in
-    wext += 0.5 * h * fext * a_ext
-    edamp += 0.5 * h * a_damp
-    efric -= 0.5 * a_fric
-    # friction forces [N, N m] and the axial thread force of the last substep
-    ffa = pa / h
-    ffb = pb / h
-    tbr = pc / h
-    fg = pg / h
-    fa_thr = (pla - pua) + ffa * sl
-    if ab:
-        fa_thr += (plb - pub) + ffb * sl
-    faprev = fa_thr
-    # A non-finite value in a position, velocity or the motor torque stays non-finite
-    # in every later substep (each is updated as x + increment), so one check per step
-    # finds it; S and out are then left as they were at the start of the step.
-    if not (math.isfinite(qm) and math.isfinite(q) and math.isfinite(xa) and math.isfinite(xb)
-            and math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)
-            and math.isfinite(u3) and math.isfinite(te)):
-        return 1
-    # write the state back once
-    S[S_QM] = qm
-    S[S_WM] = u0
-    S[S_Q] = q
-    S[S_DQ] = u1
-    S[S_XA] = xa
-    S[S_VA] = u2
-    S[S_XB] = xb
-    S[S_VB] = u3
-    S[S_TE] = te
-    S[S_T] = t
-    S[S_WIN] = win
-    S[S_WEXT] = wext
-    S[S_EFRIC] = efric
-    S[S_EDAMP] = edamp
-    S[S_FAPREV] = faprev
-    S[S_MODE0] = md0
-    S[S_MODE0 + 1] = md1
-    S[S_MODE0 + 2] = md2
-    S[S_MODE0 + 3] = md3
-    S[S_NSEARCH] = nsearch
-    # outputs of the last substep
-    out[O_NLA] = pla / cl
-    out[O_NUA] = pua / cl
-    out[O_NLB] = plb / cl
-    out[O_NUB] = pub / cl
-    out[O_FFA] = ffa
-    out[O_FFB] = ffb
-    out[O_VSA] = rc * u1 + sl * u2
-    out[O_VSB] = rc * u1 + sl * u3 if ab else 0.0
-    out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if md0 == 0 else 0.0)
-    out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if md1 == 0 else 0.0)
-    out[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
-    out[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
-    out[O_FAX] = fa_thr
-    out[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
-    out[O_TE] = te
-    out[O_TBR] = tbr
-    out[O_FG] = fg
-    out[O_NSUB] = nsub
-    return 0
-
-
-REC_STATE = 10   # S[0:10] is recorded per step by run_series, then the NO outputs
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def run_series(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
-    """
-    Run one step per entry of torques/forces (q sense, N m and N).
-
-    After step i, rec[i, :REC_STATE] holds S[:REC_STATE] and rec[i, REC_STATE:]
-    the outputs. Returns the number of steps done (fewer on a non-finite state).
-    """
     for i in range(torques.shape[0]):
-        if step(P, S, out, torques[i], forces[i], dt, nsub, wk, iwk) != 0:
+        tsat = min(max(torques[i], -P[P_TMAX]), P[P_TMAX])
+        fext = P[P_FEXT] + forces[i]
+        # state in locals
+        qm = S[S_QM]
+        q = S[S_Q]
+        xa = S[S_XA]
+        xb = S[S_XB]
+        u0 = S[S_WM]
+        u1 = S[S_DQ]
+        u2 = S[S_VA]
+        u3 = S[S_VB]
+        te = S[S_TE]
+        t = S[S_T]
+        win = S[S_WIN]
+        wext = S[S_WEXT]
+        efric = S[S_EFRIC]
+        edamp = S[S_EDAMP]
+        faprev = S[S_FAPREV]
+        md0 = int(S[S_MODE0])
+        md1 = int(S[S_MODE0 + 1])
+        md2 = int(S[S_MODE0 + 2])
+        md3 = int(S[S_MODE0 + 3])
+        nsearch = S[S_NSEARCH]
+        pla = pua = plb = pub = 0.0
+        pa = pb = pc = pg = 0.0
+        a_in = a_ext = a_damp = a_fric = 0.0   # energy sums of the step (see below)
+        for _ in range(nsub):
+            te_n = te + alpha * (tsat - te)
+            f0 = 0.0
+            f1 = 0.0
+            f2 = 0.0
+            f3 = 0.0
+            # motor and coupling
+            if rigid:
+                f1 += te_n
+            else:
+                f0 += te_n
+                tcs = kc * (qm - q)
+                tcd = cc * (u0 - u1)
+                f0 -= tcs + tcd
+                f1 += tcs + tcd
+            # bearing and guide viscous, gravity, external force
+            f1 -= cs * u1
+            f2 -= cx * u2
+            f2 += fext - ma * gs
+            if ab:
+                f3 -= mb * gs
+            # end stops on nut A (unilateral, damper never pulls)
+            fes_lo = 0.0
+            fes_hi = 0.0
+            pen = xmin - xa
+            if pen > 0.0:
+                fes_lo = max(0.0, kes * pen - ces * u2)
+                f2 += fes_lo
+            pen2 = xa - xmax
+            if pen2 > 0.0:
+                fes_hi = max(0.0, kes * pen2 + ces * u2)
+                f2 -= fes_hi
+            # thread contact of nut A
+            d = xa - rt * q
+            dd = u2 - rt * u1
+            ela = -d - hb
+            eua = d - hb
+            pla = 0.0
+            pua = 0.0
+            if ela > 0.0:
+                pla = max(0.0, k * ela - c * dd)
+            if eua > 0.0:
+                pua = max(0.0, k * eua + c * dd)
+            fna = pla - pua
+            f2 += fna
+            f1 -= rt * fna
+            plb = 0.0
+            pub = 0.0
+            elb = 0.0
+            eub = 0.0
+            if ab:
+                db = xb - rt * q
+                ddb = u3 - rt * u1
+                elb = -db - hb
+                eub = db - hb
+                if elb > 0.0:
+                    plb = max(0.0, k * elb - c * ddb)
+                if eub > 0.0:
+                    pub = max(0.0, k * eub + c * ddb)
+                fnb = plb - pub
+                f3 += fnb
+                f1 -= rt * fnb
+                fs = fp + kp * (bb - (xb - xa))
+                f3 += fs
+                f2 -= fs
+            # unconstrained velocity
+            un0 = u0
+            un1 = u1
+            un2 = u2
+            un3 = u3
+            if not rigid:
+                u0 = u0 + f0 * hmi0
+            u1 = u1 + f1 * hmi1
+            u2 = u2 + f2 * hmi2
+            if ab:
+                u3 = u3 + f3 * hmi3
+            # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
+            na = pla + pua
+            nb = plb + pub
+            vsa = rc * un1 + sl * un2
+            vsb = rc * un1 + sl * un3
+            la, la_lo = _thread_limits(na, md0, vsa, muk, muv, drop, vst, ivst, dst, zcut,
+                                       hcl, hcl_lo)
+            lb, lb_lo = _thread_limits(nb, md1, vsb, muk, muv, drop, vst, ivst, dst, zcut,
+                                       hcl, hcl_lo)
+            lbr = h * (ts0 + mcr * abs(faprev))
+            n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
+            pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
+            a_only = n == 1 and la != 0.0
+            if a_only:   # thread A alone, the common case, without the tables below
+                vv = rc * u1 + sl * u2
+                srch = False
+                if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                    pa = vv * niden0
+                    if abs(pa) > la_lo * (1.0 + 1e-9):
+                        la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
+                        pa, md0, srch = _box1(w00, vv, la, 0)
+                else:
+                    pa, md0, srch = _box1(w00, vv, la, md0)
+                if srch:
+                    nsearch += 1.0
+            elif 0 < n <= 2:
+                # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
+                lims = (la, lb, lbr, lg)
+                los = (la_lo, lb_lo, lbr, lg)
+                vels = (rc * u1 + sl * u2, rc * u1 + sl * u3, u1, u2)
+                modes = (md0, md1, md2, md3)
+                e1 = 0 if la != 0.0 else (1 if lb != 0.0 else (2 if lbr > 0.0 else 3))
+                e2 = -1
+                if n == 2:
+                    e2 = 3 if lg > 0.0 else (2 if lbr > 0.0 else 1)
+                l1 = lims[e1]
+                v1 = vels[e1]
+                w1 = wtab[5 * e1]
+                srch = False
+                if n == 1:
+                    if l1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                        p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
+                        m1 = 0
+                        if abs(p1) > los[e1] * (1.0 + 1e-9):
+                            l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
+                                               muk, muv, drop, vst, dst, zcut, hcl)
+                            p1, m1, srch = _box1(w1, v1, l1, 0)
+                    else:
+                        p1, m1, srch = _box1(w1, v1, l1, modes[e1])
+                    p2 = 0.0
+                    m2 = 0
+                else:
+                    l2 = lims[e2]
+                    v2 = vels[e2]
+                    w2 = wtab[5 * e2]
+                    w12 = wtab[4 * e1 + e2]
+                    ok = False
+                    if (l1 < 0.0 or l2 < 0.0) and modes[e1] == 0 and modes[e2] == 0:
+                        p1, p2, ok = _solve2(w1, w12, w2, v1, v2, los[e1], los[e2], 0, 0)
+                        m1 = 0
+                        m2 = 0
+                    if not ok:
+                        if l1 < 0.0:
+                            l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
+                                               muk, muv, drop, vst, dst, zcut, hcl)
+                        if l2 < 0.0:
+                            l2 = _thread_limit(na if e2 == 0 else nb, vsa if e2 == 0 else vsb,
+                                               muk, muv, drop, vst, dst, zcut, hcl)
+                        p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
+                                                     modes[e1], modes[e2])
+                if srch:
+                    nsearch += 1.0
+                pa = p1 if e1 == 0 else 0.0
+                pb = p1 if e1 == 1 else (p2 if e2 == 1 else 0.0)
+                pc = p1 if e1 == 2 else (p2 if e2 == 2 else 0.0)
+                pg = p1 if e1 == 3 else (p2 if e2 == 3 else 0.0)
+                md0 = m1 if e1 == 0 else md0
+                md1 = m1 if e1 == 1 else (m2 if e2 == 1 else md1)
+                md2 = m1 if e1 == 2 else (m2 if e2 == 2 else md2)
+                md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
+            elif n > 2:   # the general box LCP on the workspace arrays
+                if la < 0.0:
+                    la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
+                if lb < 0.0:
+                    lb = _thread_limit(nb, vsb, muk, muv, drop, vst, dst, zcut, hcl)
+                W = wk[36:52].reshape((MAXE, MAXE))
+                v0 = wk[52:56]
+                lim = wk[56:60]
+                p = wk[60:64]
+                A = wk[64:80].reshape((MAXE, MAXE))
+                r = wk[80:84]
+                Wfull = wk[88:104].reshape((MAXE, MAXE))
+                mode = iwk[0:4]
+                eid = iwk[4:8]
+                idx = iwk[8:12]
+                trial = iwk[12:16]
+                Wfull[0, 0] = w00
+                Wfull[0, 1] = w01
+                Wfull[0, 2] = w02
+                Wfull[0, 3] = w03
+                Wfull[1, 1] = w11
+                Wfull[1, 2] = w02
+                Wfull[1, 3] = 0.0
+                Wfull[2, 2] = mi1
+                Wfull[2, 3] = 0.0
+                Wfull[3, 3] = mi2
+                for a in range(1, MAXE):
+                    for b in range(a):
+                        Wfull[a, b] = Wfull[b, a]
+                n = 0
+                for e, le in ((0, la), (1, lb), (2, lbr), (3, lg)):
+                    if le > 0.0:
+                        eid[n] = e
+                        lim[n] = le
+                        n += 1
+                for a in range(n):
+                    ea = eid[a]
+                    if ea == 0:
+                        mode[a] = md0
+                        v0[a] = rc * u1 + sl * u2
+                    elif ea == 1:
+                        mode[a] = md1
+                        v0[a] = rc * u1 + sl * u3
+                    elif ea == 2:
+                        mode[a] = md2
+                        v0[a] = u1
+                    else:
+                        mode[a] = md3
+                        v0[a] = u2
+                    for b in range(n):
+                        W[a, b] = Wfull[ea, eid[b]]
+                if not _solve_free(W, v0, lim, mode, n, p, A, r, idx):
+                    nsearch += 1.0
+                    _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial)
+                for a in range(n):
+                    ea = eid[a]
+                    if ea == 0:
+                        md0 = mode[a]
+                        pa = p[a]
+                    elif ea == 1:
+                        md1 = mode[a]
+                        pb = p[a]
+                    elif ea == 2:
+                        md2 = mode[a]
+                        pc = p[a]
+                    else:
+                        md3 = mode[a]
+                        pg = p[a]
+            if a_only:
+                u1 += pa * w02
+                u2 += pa * w03
+            elif n > 0:   # element by element, in element order (adding 0 changes nothing)
+                u1 += rc * pa * mi1
+                u2 += sl * pa * mi2
+                u1 += rc * pb * mi1
+                u3 += sl * pb * mi3
+                u1 += pc * mi1
+                u2 += pg * mi2
+            if rigid:
+                u0 = u1
+            if not ab:
+                u3 = u2
+            # positions (symplectic Euler)
+            qm_n = qm + h * u0
+            q_n = q + h * u1
+            xa_n = xa + h * u2
+            xb_n = xb + h * u3
+            # energy bookkeeping with the mid-step velocities (un + u) / 2, summed over the
+            # step and scaled once at its end
+            s0 = un0 + u0
+            s1 = un1 + u1
+            s2 = un2 + u2
+            s3 = un3 + u3
+            a_in += te_n * (s1 if rigid else s0)
+            a_ext += s2
+            dp = cs * un1 * s1 + cx * un2 * s2
+            if not rigid:
+                dp += cc * (un0 - un1) * (s0 - s1)
+            ddm = s2 - rt * s1
+            if ela > 0.0:
+                dp -= (pla - k * ela) * ddm
+            if eua > 0.0:
+                dp += (pua - k * eua) * ddm
+            if pen > 0.0:
+                dp -= (fes_lo - kes * pen) * s2
+            if pen2 > 0.0:
+                dp += (fes_hi - kes * pen2) * s2
+            if ab:
+                ddmb = s3 - rt * s1
+                if elb > 0.0:
+                    dp -= (plb - k * elb) * ddmb
+                if eub > 0.0:
+                    dp += (pub - k * eub) * ddmb
+            a_damp += dp
+            if a_only:
+                a_fric += pa * (rc * s1 + sl * s2)
+            elif n > 0:
+                a_fric += pa * (rc * s1 + sl * s2) + pb * (rc * s1 + sl * s3) + pc * s1 + pg * s2
+            if mcr > 0.0:   # the next collar limit needs this substep's axial thread force
+                faprev = (pla - pua) + (pa / h) * sl
+                if ab:
+                    faprev += (plb - pub) + (pb / h) * sl
+            qm = qm_n
+            q = q_n
+            xa = xa_n
+            xb = xb_n
+            te = te_n
+            t += h
+        win += 0.5 * h * a_in
+        wext += 0.5 * h * fext * a_ext
+        edamp += 0.5 * h * a_damp
+        efric -= 0.5 * a_fric
+        # friction forces [N, N m] and the axial thread force of the last substep
+        ffa = pa / h
+        ffb = pb / h
+        tbr = pc / h
+        fg = pg / h
+        fa_thr = (pla - pua) + ffa * sl
+        if ab:
+            fa_thr += (plb - pub) + ffb * sl
+        faprev = fa_thr
+        # A non-finite value in a position, velocity or the motor torque stays non-finite
+        # in every later substep (each is updated as x + increment), so one check per step
+        # finds it; S and out are then left as they were at the start of the step.
+        if not (math.isfinite(qm) and math.isfinite(q) and math.isfinite(xa) and math.isfinite(xb)
+                and math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)
+                and math.isfinite(u3) and math.isfinite(te)):
             return i
+        # write the state back once
+        S[S_QM] = qm
+        S[S_WM] = u0
+        S[S_Q] = q
+        S[S_DQ] = u1
+        S[S_XA] = xa
+        S[S_VA] = u2
+        S[S_XB] = xb
+        S[S_VB] = u3
+        S[S_TE] = te
+        S[S_T] = t
+        S[S_WIN] = win
+        S[S_WEXT] = wext
+        S[S_EFRIC] = efric
+        S[S_EDAMP] = edamp
+        S[S_FAPREV] = faprev
+        S[S_MODE0] = md0
+        S[S_MODE0 + 1] = md1
+        S[S_MODE0 + 2] = md2
+        S[S_MODE0 + 3] = md3
+        S[S_NSEARCH] = nsearch
+        # outputs of the last substep
+        out[O_NLA] = pla / cl
+        out[O_NUA] = pua / cl
+        out[O_NLB] = plb / cl
+        out[O_NUB] = pub / cl
+        out[O_FFA] = ffa
+        out[O_FFB] = ffb
+        out[O_VSA] = rc * u1 + sl * u2
+        out[O_VSB] = rc * u1 + sl * u3 if ab else 0.0
+        out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if md0 == 0 else 0.0)
+        out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if md1 == 0 else 0.0)
+        out[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
+        out[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
+        out[O_FAX] = fa_thr
+        out[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
+        out[O_TE] = te
+        out[O_TBR] = tbr
+        out[O_FG] = fg
+        out[O_NSUB] = nsub
         for j in range(REC_STATE):
             rec[i, j] = S[j]
         for j in range(NO):
             rec[i, REC_STATE + j] = out[j]
     return torques.shape[0]
+
+
+@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
+    """
+    Advance the state S by exactly dt in nsub equal substeps.
+
+    t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
+    force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
+    became non-finite (S and out are then left as they were before the call).
+    """
+    io = wk[WK_IO:WK_IO + 2]
+    io[0] = t_cmd
+    io[1] = f_in
+    rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_STATE + NO))   # a scratch record row
+    return 0 if _steps(P, S, out, io[0:1], io[1:2], dt, nsub, wk, iwk, rec) == 1 else 1
+
+
+@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+def run_series(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
+    """
+    Run one step per entry of torques/forces (q sense, N m and N) in one call.
+
+    After step i, rec[i, :REC_STATE] holds S[:REC_STATE] and rec[i, REC_STATE:]
+    the outputs. Returns the number of steps done (fewer on a non-finite state).
+    """
+    return _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec)
