@@ -353,6 +353,25 @@ def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hc
 
 
 @njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+def _flank_forces(gap, gap_rate, hb, k, c):
+    """
+    Return (lower, upper) in-plane flank forces [N] and penetrations [m] of a nut body.
+
+    gap = x - r_m tan(lambda) q [m], gap_rate its rate [m/s], hb half the
+    backlash [m]: compliant flanks (k [N/m], c [N s/m]) that never pull.
+    """
+    el = -gap - hb
+    eu = gap - hb
+    pl = 0.0
+    pu = 0.0
+    if el > 0.0:
+        pl = max(0.0, k * el - c * gap_rate)
+    if eu > 0.0:
+        pu = max(0.0, k * eu + c * gap_rate)
+    return pl, pu, el, eu
+
+
+@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
 def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     """
     Advance S by one step of dt (nsub equal substeps) per entry of torques/forces.
@@ -485,16 +504,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                 fes_hi = max(0.0, kes * pen2 + ces * u2)
                 f2 -= fes_hi
             # thread contact of nut A
-            d = xa - rt * q
-            dd = u2 - rt * u1
-            ela = -d - hb
-            eua = d - hb
-            pla = 0.0
-            pua = 0.0
-            if ela > 0.0:
-                pla = max(0.0, k * ela - c * dd)
-            if eua > 0.0:
-                pua = max(0.0, k * eua + c * dd)
+            pla, pua, ela, eua = _flank_forces(xa - rt * q, u2 - rt * u1, hb, k, c)
             fna = pla - pua
             f2 += fna
             f1 -= rt * fna
@@ -503,14 +513,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
             elb = 0.0
             eub = 0.0
             if ab:
-                db = xb - rt * q
-                ddb = u3 - rt * u1
-                elb = -db - hb
-                eub = db - hb
-                if elb > 0.0:
-                    plb = max(0.0, k * elb - c * ddb)
-                if eub > 0.0:
-                    pub = max(0.0, k * eub + c * ddb)
+                plb, pub, elb, eub = _flank_forces(xb - rt * q, u3 - rt * u1, hb, k, c)
                 fnb = plb - pub
                 f3 += fnb
                 f1 -= rt * fnb
