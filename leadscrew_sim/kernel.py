@@ -17,9 +17,9 @@ import math
 
 import numpy as np
 
-# Helpers that take arrays are compiled without the numba runtime (_nrt=False): they
-# allocate nothing, and skipping the reference counting of their array arguments
-# cut a substep from ~280 ns to ~100 ns here (bench/README.md).
+# Functions that take arrays are compiled without the numba runtime (_nrt=False):
+# they allocate nothing, and skipping the reference counting of their array
+# arguments was worth ~120 ns per substep in the array kernel of stop 8.
 try:  # numba is the accelerator (see README, "Why numba"); plain Python also works.
     from numba import njit
 except ImportError:  # pragma: no cover
@@ -441,6 +441,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     hmi2 = h * mi2
     hmi3 = h * mi3
     niden0 = -1.0 / (w00 + (1e-12 * w00 + 1e-300))
+    # the full symmetric 4 x 4 matrix, row-major, for the general LCP
     wtab = (w00, w01, w02, w03, w01, w11, w02, 0.0, w02, w02, mi1, 0.0, w03, 0.0, 0.0, mi2)
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     gs = P[P_GS]
@@ -622,24 +623,10 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                 p = wk[60:64]
                 A = wk[64:80].reshape((MAXE, MAXE))
                 r = wk[80:84]
-                Wfull = wk[88:104].reshape((MAXE, MAXE))
                 mode = iwk[0:4]
                 eid = iwk[4:8]
                 idx = iwk[8:12]
                 trial = iwk[12:16]
-                Wfull[0, 0] = w00
-                Wfull[0, 1] = w01
-                Wfull[0, 2] = w02
-                Wfull[0, 3] = w03
-                Wfull[1, 1] = w11
-                Wfull[1, 2] = w02
-                Wfull[1, 3] = 0.0
-                Wfull[2, 2] = mi1
-                Wfull[2, 3] = 0.0
-                Wfull[3, 3] = mi2
-                for a in range(1, MAXE):
-                    for b in range(a):
-                        Wfull[a, b] = Wfull[b, a]
                 n = 0
                 for e, le in ((0, la), (1, lb), (2, lbr), (3, lg)):
                     if le > 0.0:
@@ -661,7 +648,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                         mode[a] = md3
                         v0[a] = u2
                     for b in range(n):
-                        W[a, b] = Wfull[ea, eid[b]]
+                        W[a, b] = wtab[4 * ea + eid[b]]
                 if not _solve_free(W, v0, lim, mode, n, p, A, r, idx):
                     nsearch += 1.0
                     _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial)
