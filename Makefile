@@ -24,7 +24,7 @@ $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	@echo "setup done: $(VENV)"
 
 run: setup
-	$(ENV) $(VPY) -m leadscrew_sim.demo --preset $(PRESET) --duration $(DURATION)
+	$(ENV) $(VPY) -m leadscrew_sim.ros.demo --preset $(PRESET) --duration $(DURATION)
 
 test: setup
 	$(ENV) $(VPY) -m pytest -p no:cacheprovider test

@@ -25,7 +25,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'leadscrew_sim_node = leadscrew_sim.node:main',
+            'leadscrew_sim_node = leadscrew_sim.ros.node:main',
             'leadscrew_sim = leadscrew_sim.cli:main',
         ],
     },

@@ -1,15 +1,29 @@
 """
 leadscrew_sim: a lead screw axis simulator (physics core, ROS 2 node, MCAP tools).
 
-The physics core (``geometry``, ``params``, ``kernel``, ``model``) imports
-nothing from ROS and can be used as a plain Python library::
+Layers, with imports running one way (``core <- io <- {ros, cli}``):
+
+- :mod:`leadscrew_sim.core`: the physics (numpy and numba only);
+- :mod:`leadscrew_sim.io`: bytes and schemas (CDR, MCAP), no rclpy;
+- :mod:`leadscrew_sim.ros`: the ROS 2 node;
+- :mod:`leadscrew_sim.cli`: the offline command line.
+
+The physics core can be used as a plain Python library::
 
     from leadscrew_sim import LeadScrewModel, load_preset
     model = LeadScrewModel(load_preset('tr12x3'))
     out = model.step(0.5, dt=1e-3)   # motor torque 0.5 N m for 1 ms
-"""
-from .model import LeadScrewModel, StepOutput
-from .params import ParameterError, ScrewParams, load_preset, preset_names
 
+The names below are imported on first use, so that a process that needs only
+one layer (the recorder process needs only ``io``) does not load numba.
+"""
 __all__ = ['LeadScrewModel', 'StepOutput', 'ParameterError', 'ScrewParams',
-           'load_preset', 'preset_names']
+           'SimulationFault', 'load_preset', 'preset_names']
+
+
+def __getattr__(name):
+    """Import the public core names lazily."""
+    if name in __all__:
+        from . import core
+        return getattr(core, name)
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

@@ -13,8 +13,8 @@ import sys
 import threading
 import time
 
-from leadscrew_sim import messages as M
-from leadscrew_sim.msgdefs import cdr_length
+from leadscrew_sim.io import cdr as C, messages as M, topics as T
+from leadscrew_sim.io.msgdefs import cdr_length
 import pytest
 
 NS = 1_000_000_000
@@ -123,15 +123,15 @@ def test_state_encoder_matches_rclpy(prefix):
         mine = enc.thread_force(stamp, (v[0], v[1]))
         assert len(mine) == wr_len
         assert {i for i in range(wr_len) if mine[i] != ref[i]} <= wr_pads
-        assert M.decode_wrench_stamped(mine) == (stamp, (v[0], 0.0, 0.0), (v[1], 0.0, 0.0))
+        assert C.decode_wrench_stamped(mine) == (stamp, (v[0], 0.0, 0.0), (v[1], 0.0, 0.0))
 
         # No padding in Float64 and Clock: byte for byte.
         assert enc.nut_position(None, (v[2],)) == serialize_message(Float64(data=v[2]))
-        assert M.encode_float64(v[3]) == serialize_message(Float64(data=v[3]))
+        assert C.encode_float64(v[3]) == serialize_message(Float64(data=v[3]))
         c = Clock()
         c.clock.sec, c.clock.nanosec = divmod(stamp, NS)
         assert enc.clock(stamp, ()) == serialize_message(c)
-        assert M.decode_joint_state(enc.joint_states(stamp, v)) == (
+        assert C.decode_joint_state(enc.joint_states(stamp, v)) == (
             stamp, names, tuple(v[0:2]), tuple(v[2:4]), tuple(v[4:6]))
 
 
@@ -143,7 +143,7 @@ def test_simulate_file_layout(sim_file):
     """Both mcap(+ros2 decoder) and rosbags read every message; counts, times and values agree."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
-    from leadscrew_sim.params import ScrewParams
+    from leadscrew_sim.core.params import ScrewParams
     by_topic = {}
     with open(sim_file, 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
@@ -234,7 +234,7 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
         seq = [(c.topic, m.log_time, m.data)
                for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
     ms = 1_000_000
-    forces = [(t, M.decode_float64(d)) for topic, t, d in seq if topic == '/external_force']
+    forces = [(t, C.decode_float64(d)) for topic, t, d in seq if topic == '/external_force']
     assert forces == [(0, 0.0), (250 * ms, 3.0), (999 * ms, -2.0), (1000 * ms, 5.0)]
     expected = []
     force_at = {t for t, _ in forces}

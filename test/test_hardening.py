@@ -20,8 +20,9 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from leadscrew_sim.params import load_preset, ScrewParams
-from leadscrew_sim.recording import PREFIX_RE, recover
+from leadscrew_sim.core import load_preset, ScrewParams
+from leadscrew_sim.core.settings import PREFIX_RE
+from leadscrew_sim.io.session import recover
 from mcap.reader import make_reader
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -439,8 +440,8 @@ EXTREME_SETS = [
 
 def expected_start(overrides):
     """Return (None, nsub) if the set must run, else (parameter named, None)."""
-    from leadscrew_sim.model import auto_substep, MAX_SUBSTEPS_PER_STEP
-    from leadscrew_sim.params import ParameterError
+    from leadscrew_sim.core.model import auto_substep, MAX_SUBSTEPS_PER_STEP
+    from leadscrew_sim.core.params import ParameterError
     phys = {k: v for k, v in overrides.items() if k != 'update_rate'}
     try:
         p = ScrewParams.from_dict(phys, base=PRESET)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import zstandard
 
-from leadscrew_sim.mcap_writer import MAGIC, McapWriter
+from leadscrew_sim.io.mcap_writer import MAGIC, McapWriter
 
 
 def messages(n, sizes=(8, 13, 40)):

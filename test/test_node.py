@@ -25,7 +25,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from leadscrew_sim.params import load_preset
+from leadscrew_sim.core import load_preset
 
 NODE = '/leadscrew_sim_node'
 DEEP = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

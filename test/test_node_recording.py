@@ -20,9 +20,9 @@ import time
 
 from conftest import NodeProcess
 from test_node import Ros, stamp_ns
-from leadscrew_sim.msgdefs import ros2msg_definition
-from leadscrew_sim.params import load_preset, ScrewParams
-from leadscrew_sim.recording import recover
+from leadscrew_sim.io.msgdefs import ros2msg_definition
+from leadscrew_sim.core import load_preset, ScrewParams
+from leadscrew_sim.io.session import recover
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest

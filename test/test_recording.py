@@ -11,8 +11,8 @@ import time
 from ament_index_python.packages import get_package_share_directory
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
-from leadscrew_sim.msgdefs import cdr_length, ros2msg_definition
-from leadscrew_sim.recording import McapRecorder, recover, RecordingSession
+from leadscrew_sim.io.msgdefs import cdr_length, ros2msg_definition
+from leadscrew_sim.io.session import McapRecorder, recover, RecordingSession
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
@@ -193,7 +193,7 @@ CHILD = textwrap.dedent('''
     import signal, sys, time
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64
-    from leadscrew_sim.recording import McapRecorder
+    from leadscrew_sim.io.session import McapRecorder
     path, mode, flush = sys.argv[1], sys.argv[2], float(sys.argv[3])
     rec = McapRecorder(path, flush_interval=flush)
     cid = rec.add_channel('/x', 'std_msgs/msg/Float64')

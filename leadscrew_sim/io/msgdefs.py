@@ -21,6 +21,8 @@ import re
 import struct
 import sys
 
+from .cdr import padding
+
 PRIMITIVE_TYPES = frozenset((
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
     'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring'))
@@ -216,7 +218,7 @@ def cdr_length(msg_type, data, _walk=False):
     size = len(data)
 
     def align(pos, n):
-        return pos + (-(pos - 4)) % n
+        return pos + padding(pos, n)
 
     def one(base, pos):
         if base in _PRIMITIVE_SIZES:

@@ -1,23 +1,11 @@
 """
-Serialized (CDR) messages of the lead screw axis: the one place that encodes them.
+CDR (XCDR1, the ROS 2 default) encoding and decoding, with one alignment rule.
 
-The node publishes and records, and the offline tools (``leadscrew_sim``
-command line) write, the same bytes:
-
-- :data:`TOPICS`: relative topic name -> (type, role, QoS);
-- :class:`StateEncoder`: ``joint_states``, ``nut_position``, ``thread_force``
-  and ``/clock`` from a stamp [ns] and values, or from a
-  :class:`leadscrew_sim.model.StepOutput`;
-- :func:`encode_float64` for the commands ``torque_command`` / ``external_force``;
-- small decoders for the fixed-layout messages (:func:`decode_float64`,
-  :func:`decode_joint_state`, :func:`decode_wrench_stamped`).
-
-The encoders are plain ``struct`` code (no rclpy import): plain CDR (XCDR1),
-little endian, padding bytes zero. ``rclpy.serialization.serialize_message``
-gives the same bytes except in the padding (it leaves padding bytes
-uninitialized) and possibly trailing garbage after the message;
-``test/test_cli.py`` checks this field by field and byte by byte.
-The node, simulate and resim all encode through :class:`StateEncoder`.
+Plain ``struct`` code, no rclpy: the node, the offline tools and the recorder
+all write the same bytes. Encoding is little endian with zero padding;
+``rclpy.serialization.serialize_message`` gives the same bytes except in the
+padding, which it leaves uninitialized. Fixed-layout messages are encoded
+from a byte :class:`Template` with the stamp and doubles patched in.
 """
 import struct
 
@@ -28,40 +16,19 @@ NS = 1_000_000_000
 #: CDR encapsulation header: plain CDR, little endian, no options.
 CDR_LE = b'\x00\x01\x00\x00'
 
-#: Relative topic name -> (message type, role, QoS). All QoS: reliable, volatile,
-#: keep last 10 (the node's COMMAND_QOS and STATE_QOS; joint_state_broadcaster
-#: convention). '/clock' is absolute, as the node publishes it.
-TOPICS = {
-    'torque_command': ('std_msgs/msg/Float64', 'command',
-                       dict(reliability='reliable', durability='volatile', depth=10)),
-    'joint_commands': ('sensor_msgs/msg/JointState', 'command',
-                       dict(reliability='reliable', durability='volatile', depth=10)),
-    'external_force': ('std_msgs/msg/Float64', 'command',
-                       dict(reliability='reliable', durability='volatile', depth=10)),
-    'joint_states': ('sensor_msgs/msg/JointState', 'state',
-                     dict(reliability='reliable', durability='volatile', depth=10)),
-    'nut_position': ('std_msgs/msg/Float64', 'state',
-                     dict(reliability='reliable', durability='volatile', depth=10)),
-    'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state',
-                     dict(reliability='reliable', durability='volatile', depth=10)),
-    '/clock': ('rosgraph_msgs/msg/Clock', 'clock',
-               dict(reliability='reliable', durability='volatile', depth=10)),
-}
-
-#: Topics in the order the node registers its recording channels.
-COMMAND_TOPICS = ('torque_command', 'joint_commands', 'external_force')
-STATE_TOPICS = ('joint_states', 'nut_position', 'thread_force')
-
 _D = struct.Struct('<d')
 _STAMP = struct.Struct('<iI')
 
 
-def resolve(topic, namespace='/'):
-    """Return the resolved name of a relative topic in ``namespace`` (``'/'`` default)."""
-    if topic.startswith('/'):
-        return topic
-    ns = namespace.rstrip('/')
-    return f'{ns}/{topic}'
+def padding(pos, n):
+    """
+    Return the padding [bytes] before an item of alignment ``n`` at byte ``pos``.
+
+    CDR aligns relative to the payload, which starts after the 4-byte
+    encapsulation header. The one rule of the writer, the reader and
+    :func:`leadscrew_sim.io.msgdefs.cdr_length`.
+    """
+    return (-(pos - 4)) % n
 
 
 def split_stamp(stamp_ns):
@@ -69,38 +36,43 @@ def split_stamp(stamp_ns):
     return divmod(int(stamp_ns), NS)
 
 
-class _CdrWriter:
-    """Append-only plain CDR (little endian) with alignment relative to the payload."""
+class CdrWriter:
+    """Append-only plain CDR (little endian), padding bytes zero; methods return offsets."""
 
     def __init__(self):
+        """Start a message with the encapsulation header."""
         self.buf = bytearray(CDR_LE)
 
     def _align(self, n):
-        pad = (-(len(self.buf) - 4)) % n
-        self.buf += b'\x00' * pad
+        self.buf += b'\x00' * padding(len(self.buf), n)
 
     def u32(self, v):
+        """Append a uint32."""
         self._align(4)
         self.buf += struct.pack('<I', v)
 
     def stamp(self, sec, nsec):
+        """Append a builtin_interfaces/Time; return its offset."""
         self._align(4)
         off = len(self.buf)
         self.buf += _STAMP.pack(sec, nsec)
         return off
 
     def string(self, s):
+        """Append a string (length with the NUL, UTF-8 bytes, NUL)."""
         raw = s.encode('utf-8') + b'\x00'
         self.u32(len(raw))
         self.buf += raw
 
     def f64(self, v):
+        """Append a float64; return its offset."""
         self._align(8)
         off = len(self.buf)
         self.buf += _D.pack(v)
         return off
 
     def f64_seq(self, values):
+        """Append a float64 sequence; return the offsets of its items."""
         self.u32(len(values))
         offs = []
         for v in values:
@@ -108,18 +80,20 @@ class _CdrWriter:
         return offs
 
 
-class _Template:
+class Template:
     """A fixed-layout message: a byte template with the stamp and double offsets."""
 
     __slots__ = ('tmpl', 'stamp_off', 'offsets', 'buf')
 
     def __init__(self, raw, stamp_off, offsets):
+        """Keep the bytes ``raw``, the stamp offset (or None) and the double offsets."""
         self.tmpl = bytes(raw)
         self.stamp_off = stamp_off
         self.offsets = tuple(offsets)
         self.buf = bytearray(raw)
 
     def __call__(self, stamp_ns, values):
+        """Return the message bytes with this stamp [ns] and these doubles."""
         buf = self.buf
         if self.stamp_off is not None:
             sec, nsec = divmod(stamp_ns, NS)
@@ -153,36 +127,40 @@ class _Template:
         return out
 
 
-def _joint_state_template(names, n_pos, n_vel, n_eff):
-    w = _CdrWriter()
+def joint_state_template(names, n_pos, n_vel, n_eff):
+    """Template of a sensor_msgs/JointState with these names and array lengths."""
+    w = CdrWriter()
     stamp_off = w.stamp(0, 0)
     w.string('')                       # frame_id
     w.u32(len(names))
     for n in names:
         w.string(n)
     offs = w.f64_seq([0.0] * n_pos) + w.f64_seq([0.0] * n_vel) + w.f64_seq([0.0] * n_eff)
-    return _Template(w.buf, stamp_off, offs)
+    return Template(w.buf, stamp_off, offs)
 
 
-def _wrench_template():
-    w = _CdrWriter()
+def wrench_template():
+    """Template of a geometry_msgs/WrenchStamped; open: stamp, force.x, torque.x."""
+    w = CdrWriter()
     stamp_off = w.stamp(0, 0)
     w.string('')
     offs = [w.f64(0.0) for _ in range(6)]        # force xyz, torque xyz
-    return _Template(w.buf, stamp_off, (offs[0], offs[3]))
+    return Template(w.buf, stamp_off, (offs[0], offs[3]))
 
 
-def _float64_template():
-    w = _CdrWriter()
-    return _Template(w.buf, None, [w.f64(0.0)])
+def float64_template():
+    """Template of a std_msgs/Float64; open: data."""
+    w = CdrWriter()
+    return Template(w.buf, None, [w.f64(0.0)])
 
 
-def _clock_template():
-    w = _CdrWriter()
-    return _Template(w.buf, w.stamp(0, 0), [])
+def clock_template():
+    """Template of a rosgraph_msgs/Clock; open: the stamp."""
+    w = CdrWriter()
+    return Template(w.buf, w.stamp(0, 0), [])
 
 
-_F64 = _float64_template()
+_F64 = float64_template()
 #: The std_msgs/Float64 template (``F64_TEMPLATE.rows`` encodes many at once).
 F64_TEMPLATE = _F64
 
@@ -194,47 +172,8 @@ def encode_float64(value):
 
 def encode_joint_state(stamp_ns, names, position=(), velocity=(), effort=()):
     """Return the CDR bytes of a sensor_msgs/JointState (empty frame_id)."""
-    t = _joint_state_template(list(names), len(position), len(velocity), len(effort))
+    t = joint_state_template(list(names), len(position), len(velocity), len(effort))
     return t(int(stamp_ns), tuple(position) + tuple(velocity) + tuple(effort))
-
-
-class StateEncoder:
-    """
-    Encode the states of one tick, as the node publishes and records them.
-
-    Joint names are ``<joint_prefix>screw_joint`` and ``<joint_prefix>nut_joint``.
-    Each method takes ``(stamp_ns, values)`` like the node's serializers:
-
-    - ``joint_states(stamp, (screw_angle, nut_position, screw_velocity,
-      nut_velocity, motor_torque, axial_force))``;
-    - ``nut_position(stamp_or_None, (x,))``;
-    - ``thread_force(stamp, (axial_force, thread_torque))``;
-    - ``clock(stamp, ())``.
-
-    Stamps are integer nanoseconds >= 0 (sec fits int32).
-    """
-
-    def __init__(self, joint_prefix=''):
-        """Build the byte templates for the joint names of ``joint_prefix``."""
-        self.joint_prefix = joint_prefix
-        self.joint_names = (joint_prefix + 'screw_joint', joint_prefix + 'nut_joint')
-        self.joint_states = _joint_state_template(self.joint_names, 2, 2, 2)
-        self.nut_position = _float64_template()
-        self.thread_force = _wrench_template()
-        self.clock = _clock_template()
-
-    @staticmethod
-    def values(o):
-        """Return the value tuples (joint_states, nut_position, thread_force) of a StepOutput."""
-        return ((o.screw_angle, o.nut_position, o.screw_velocity, o.nut_velocity,
-                 o.motor_torque, o.axial_force), (o.nut_position,),
-                (o.axial_force, o.thread_torque))
-
-    def encode(self, stamp_ns, o):
-        """Return the bytes of (joint_states, nut_position, thread_force) for a StepOutput."""
-        js, x, wr = self.values(o)
-        return (self.joint_states(stamp_ns, js), self.nut_position(None, x),
-                self.thread_force(stamp_ns, wr))
 
 
 # ---------------------------------------------------------------------------
@@ -245,8 +184,11 @@ class DecodeError(ValueError):
     """Bytes that are not a valid CDR message of the expected type."""
 
 
-class _CdrReader:
+class CdrReader:
+    """Plain CDR (XCDR1) reader of either endianness, with the writer's alignment rule."""
+
     def __init__(self, data):
+        """Check the encapsulation header of ``data``."""
         if len(data) < 4 or data[0] != 0 or data[1] not in (0, 1):
             raise DecodeError('not plain CDR')
         self.data = data
@@ -254,7 +196,7 @@ class _CdrReader:
         self.pos = 4
 
     def _align(self, n):
-        self.pos += (-(self.pos - 4)) % n
+        self.pos += padding(self.pos, n)
 
     def _take(self, fmt, size, align):
         self._align(align)
@@ -266,13 +208,16 @@ class _CdrReader:
         return v
 
     def u32(self):
+        """Read a uint32."""
         return self._take('I', 4, 4)[0]
 
     def stamp(self):
+        """Read a builtin_interfaces/Time as integer ns."""
         sec, nsec = self._take('iI', 8, 4)
         return sec * NS + nsec
 
     def string(self):
+        """Read a string."""
         n = self.u32()
         raw = self.data[self.pos:self.pos + n]
         if n == 0 or len(raw) != n:
@@ -281,9 +226,11 @@ class _CdrReader:
         return bytes(raw[:-1]).decode('utf-8', 'replace')
 
     def f64(self):
+        """Read a float64."""
         return self._take('d', 8, 8)[0]
 
     def f64_seq(self):
+        """Read a float64 sequence as a tuple."""
         n = self.u32()
         if n > (len(self.data) - self.pos) // 8:
             raise DecodeError('sequence longer than the message')
@@ -292,14 +239,28 @@ class _CdrReader:
         return self._take(f'{n}d', 8 * n, 8)
 
 
+#: std_msgs/Float64 encapsulations (CDR and XCDR2, big and little endian) -> the decoder
+#: of the double at offset 4, as DDS implementations send them.
+_F64_CDR = {b'\x00\x00': struct.Struct('>d'), b'\x00\x01': struct.Struct('<d'),
+            b'\x00\x06': struct.Struct('>d'), b'\x00\x07': struct.Struct('<d')}
+
+
 def decode_float64(data):
-    """Return the ``data`` field of a serialized std_msgs/Float64."""
-    return _CdrReader(data).f64()
+    """
+    Return the ``data`` field of a serialized std_msgs/Float64.
+
+    Takes plain CDR and XCDR2 of either endianness (the double sits at offset
+    4 in all four); raises DecodeError for anything else.
+    """
+    codec = _F64_CDR.get(bytes(data[:2])) if len(data) >= 12 else None
+    if codec is None:
+        raise DecodeError('not a CDR std_msgs/Float64')
+    return codec.unpack_from(data, 4)[0]
 
 
 def decode_joint_state(data):
     """Return (stamp_ns, names, position, velocity, effort) of a serialized JointState."""
-    r = _CdrReader(data)
+    r = CdrReader(data)
     stamp = r.stamp()
     r.string()
     n = r.u32()
@@ -311,7 +272,7 @@ def decode_joint_state(data):
 
 def decode_wrench_stamped(data):
     """Return (stamp_ns, (fx, fy, fz), (tx, ty, tz)) of a serialized WrenchStamped."""
-    r = _CdrReader(data)
+    r = CdrReader(data)
     stamp = r.stamp()
     r.string()
     v = [r.f64() for _ in range(6)]

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from . import kernel as K
+from .faults import SimulationFault
 from .params import ParameterError, ScrewParams
 
 #: Largest number of substeps one step may take before the set is refused.
@@ -232,8 +233,7 @@ class LeadScrewModel:
         if not (math.isfinite(torque) and math.isfinite(external_force)):
             raise ValueError(f'non-finite input: torque={torque!r} N m, '
                              f'external_force={external_force!r} N')
-        if self.fault:
-            raise FloatingPointError(self.fault)
+        self._check_fault()
         if dt is None or dt == self.dt:
             dt, n = self.dt, self.nsub
         else:
@@ -241,9 +241,8 @@ class LeadScrewModel:
         rc = K.step(self._P, self.state, self.out, self._P_hand() * torque,
                     float(external_force), float(dt), n, self._wk, self._iwk)
         if rc != 0:   # the kernel left the state as it was before this step
-            self.fault = (f'non-finite state at t={self.state[K.S_T]:.6f} s '
-                          f'(torque {torque} N m); integration stopped')
-            raise FloatingPointError(self.fault)
+            self._fail(f'non-finite state at t={self.state[K.S_T]:.6f} s '
+                       f'(torque {torque} N m); integration stopped')
 
     def run(self, torques, external_forces=None):
         """
@@ -261,14 +260,11 @@ class LeadScrewModel:
               else np.ascontiguousarray(external_forces, dtype=float))
         if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
             raise ValueError('torques and external_forces must be finite and of equal length')
-        if self.fault:
-            raise FloatingPointError(self.fault)
+        self._check_fault()
         rec = np.empty((len(tq), K.REC_STATE + K.NO))
         hs = self.params.hand_sign
         done = K.run_series(self._P, self.state, self.out, tq if hs == 1 else -tq, fe,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
-        if done < len(tq):
-            self.fault = f'non-finite state at step {done}; integration stopped'
         r = rec[:done]
 
         def hand(col):   # a q-sense column in the physical sense (a view for right hand)
@@ -283,9 +279,19 @@ class LeadScrewModel:
             normal_leading=r[:, o + K.O_NLA], normal_trailing=r[:, o + K.O_NUA],
             sliding_velocity=r[:, o + K.O_VSA], contact=r[:, o + K.O_CONTA].astype(int),
             stuck=r[:, o + K.O_STICKA] == 1.0)
-        if self.fault:
-            raise FloatingPointError(self.fault)
+        if done < len(tq):
+            self._fail(f'non-finite state at step {done}; integration stopped')
         return res
+
+    def _check_fault(self):
+        """Raise the latched SimulationFault again, if any (until reset())."""
+        if self.fault:
+            raise SimulationFault(self.fault, self.state[K.S_T])
+
+    def _fail(self, message):
+        """Latch a fault and raise it: the one place a SimulationFault is created."""
+        self.fault = message
+        self._check_fault()
 
     def _P_hand(self):
         return self.params.hand_sign

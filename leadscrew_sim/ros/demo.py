@@ -66,7 +66,7 @@ def pulse_torque(t, x, state, hold, half, hand_sign):
 def main(argv=None):
     """Run the demo; return the exit code."""
     from .node import DEFAULT_PRESET
-    from .params import load_preset, ParameterError
+    from ..core import load_preset, ParameterError
 
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--preset', default=DEFAULT_PRESET,

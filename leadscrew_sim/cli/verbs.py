@@ -31,9 +31,9 @@ import time
 
 import numpy as np
 
-from . import messages as M
-from .params import (load_preset, ParameterError, physics_subset, read_parameter_file,
-                     ScrewParams)
+from ..io import cdr as C, messages as M, topics as T
+from ..core.params import ParameterError, ScrewParams
+from ..core.presets import load_preset, physics_subset, read_parameter_file
 
 PROG = 'leadscrew_sim'
 NS = 1_000_000_000
@@ -76,7 +76,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _parse_scalar(text):
     """Parse a --set value as a YAML scalar; '1e-4' counts as a number."""
-    from . import yamlio
+    from ..core import yamlio
     try:
         value = yamlio.load(text)
     except yamlio.YAMLError:
@@ -369,7 +369,7 @@ class RunWriter:
 
     def __init__(self, path, joint_prefix='', namespace='/', clock=False):
         """Open the file and register the node's channels (resolved names)."""
-        from .recording import McapRecorder, qos_profile_yaml
+        from ..io.session import McapRecorder, qos_profile_yaml
         self.path = str(path)
         try:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
@@ -379,11 +379,11 @@ class RunWriter:
         if self.rec.error:
             raise CliError(f'cannot write {self.rec.error}')
         self.ids = {}
-        topics = list(M.COMMAND_TOPICS) + list(M.STATE_TOPICS) + (['/clock'] if clock else [])
+        topics = list(T.COMMAND_TOPICS) + list(T.STATE_TOPICS) + (['/clock'] if clock else [])
         for rel in topics:
-            msg_type, _role, qos = M.TOPICS[rel]
+            msg_type, _role, qos = T.TOPICS[rel]
             # our encoders write exact CDR, so the recorder need not trim
-            self.ids[rel] = self.rec.add_channel(M.resolve(rel, namespace), msg_type,
+            self.ids[rel] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
                                                  qos_profile_yaml(**qos), trim=False)
         self.write = self.rec.write
         self.enc = M.StateEncoder(joint_prefix)
@@ -432,7 +432,7 @@ def load_params(args, phys_overrides):
 
 def cmd_simulate(args):
     """Run the model offline and record it in the node's layout."""
-    from .model import LeadScrewModel
+    from ..core.model import LeadScrewModel
     phys_ov, run_ov = parse_sets(args.set)
     params, label, extra = load_params(args, phys_ov)
     rate = args.rate if args.rate is not None else float(extra.get('update_rate', 1000.0))
@@ -558,7 +558,7 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
     t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
     t_state = t_cmd + dt_ns
     angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = cols
-    rows = [M.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
+    rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
             enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor, f_ax]),
             enc.nut_position.rows(None, [x]),
             enc.thread_force.rows(t_state, [f_ax, tq_thread])]
@@ -578,7 +578,7 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
             break
         # a force change: torque, force, then the states of that tick
         w.write(chans[0], rows[0][i].tobytes(), int(t_cmd[i]))
-        w.write(ids['external_force'], M.encode_float64(forces[i]), int(t_cmd[i]))
+        w.write(ids['external_force'], C.encode_float64(forces[i]), int(t_cmd[i]))
         w.rec.write_rows(chans[1:], [r[i:i + 1] for r in rows[1:]],
                          [t[i:i + 1] for t in times[1:]])
         a = i + 1
@@ -704,7 +704,7 @@ class Resim:
                            f'{exc}') from None
         self.prefix = meta.get('joint_prefix', '')
         self.clock_mode = meta.get('clock_mode', '')
-        self.topics = {rel: rec.role_topic(rel) for rel in M.COMMAND_TOPICS + M.STATE_TOPICS}
+        self.topics = {rel: rec.role_topic(rel) for rel in T.COMMAND_TOPICS + T.STATE_TOPICS}
         by_topic = {t: rel for rel, t in self.topics.items() if t}
         self.events = []            # (log_time, kind, payload) in log-time order
         self.states = {}            # step index -> dict(rel -> bytes)
@@ -716,10 +716,10 @@ class Resim:
                 same_t, rank = log_time, 0
             rank += 1
             rel = by_topic.get(topic)
-            if rel in M.COMMAND_TOPICS:
+            if rel in T.COMMAND_TOPICS:
                 self.events.append((log_time, rel, data))
                 order.append((log_time, rank))
-            elif rel in M.STATE_TOPICS:
+            elif rel in T.STATE_TOPICS:
                 k, r = divmod(log_time - self.t0, self.dt_ns)
                 if r == 0 and k > 0:
                     self.states.setdefault(k, {})[rel] = data
@@ -749,7 +749,7 @@ class Resim:
         Returns (new states {k: (js values, x, wrench values)}, outputs list or None,
         model).
         """
-        from .model import LeadScrewModel
+        from ..core.model import LeadScrewModel
         model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
         screw = self.prefix + 'screw_joint'
         torque = force = 0.0
@@ -769,13 +769,13 @@ class Resim:
                 if writer is not None and kind in writer.ids:
                     writer.write(writer.ids[kind], data, log_time)
                 if kind == 'torque_command':
-                    value = M.decode_float64(data)
+                    value = C.decode_float64(data)
                     if math.isfinite(value):
                         torque, cmd_time = value, t_k
                     else:
                         self.rejected += 1
                 elif kind == 'joint_commands':
-                    _s, names, _p, _v, eff = M.decode_joint_state(data)
+                    _s, names, _p, _v, eff = C.decode_joint_state(data)
                     if screw in names:
                         i = names.index(screw)
                         if len(eff) == len(names) and math.isfinite(eff[i]):
@@ -783,7 +783,7 @@ class Resim:
                         else:
                             self.rejected += 1
                 elif kind == 'external_force':
-                    value = M.decode_float64(data)
+                    value = C.decode_float64(data)
                     if math.isfinite(value):
                         force = value
                     else:
@@ -840,14 +840,14 @@ class Resim:
                 continue
             js, x, wr = new
             if 'joint_states' in rec:
-                _s, _n, pos, vel, eff = M.decode_joint_state(rec['joint_states'])
+                _s, _n, pos, vel, eff = C.decode_joint_state(rec['joint_states'])
                 old = list(pos[:2]) + list(vel[:2]) + list(eff[:2])
                 for i, (field, val) in enumerate(zip(fields[:6], old)):
                     _acc(acc[field], val, js[i])
             if 'nut_position' in rec:
-                _acc(acc[fields[6]], M.decode_float64(rec['nut_position']), x)
+                _acc(acc[fields[6]], C.decode_float64(rec['nut_position']), x)
             if 'thread_force' in rec:
-                _s, f, t = M.decode_wrench_stamped(rec['thread_force'])
+                _s, f, t = C.decode_wrench_stamped(rec['thread_force'])
                 _acc(acc[fields[7]], f[0], wr[0])
                 _acc(acc[fields[8]], t[0], wr[1])
         rows = []
@@ -957,7 +957,7 @@ def cmd_info(args):
     xs, vs, ws, tqs = [], [], [], []
     for _t, topic, data in rec.messages:
         if topic == js_topic:
-            _s, _names, pos, vel, eff = M.decode_joint_state(data)
+            _s, _names, pos, vel, eff = C.decode_joint_state(data)
             if len(pos) >= 2:
                 xs.append(pos[1])
             if len(vel) >= 2:
@@ -1105,7 +1105,7 @@ def _message_class(msg_type):
 
 def _qos_from_metadata(metadata):
     """Return a QoSProfile from a channel's offered_qos_profiles (reliable, depth 10 default)."""
-    from . import yamlio
+    from ..core import yamlio
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     rel, dur, depth = ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE, 10
     try:

@@ -26,7 +26,8 @@ from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 import numpy as np
 
-from . import yamlio
+from ..core import yamlio
+from ..core.settings import PREFIX_RE
 from .mcap_writer import McapWriter
 from .msgdefs import cdr_length, full_type_name, ros2msg_definition, type_hash
 
@@ -39,7 +40,7 @@ except Exception:  # noqa: B902 - package metadata is optional (source checkout)
 ROSBAG2_METADATA_VERSION = 9
 ROSBAG2_METADATA_NAME = 'rosbag2'
 DURATION_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-PREFIX_RE = re.compile(r'^[A-Za-z0-9_-]{1,64}$')
+from ..core.settings import PREFIX_RE  # noqa: E402 - one rule for the node and the session
 
 _QOS_CHOICES = {
     'history': ('keep_last', 'keep_all', 'system_default', 'unknown'),

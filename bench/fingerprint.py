@@ -1,0 +1,120 @@
+"""
+Fingerprint the package's numerical behaviour, to compare two versions of the code bit for bit.
+
+Run: .venv/bin/python bench/fingerprint.py [--seconds 10] [--out DIR]
+
+For every preset and four drives (hold: zero torque; track: a PD loop on the
+motor angle tracking x = 50 mm sin(2 pi 0.5 Hz t); sine: 0.5 max_torque at
+1 Hz; move: simulate's position move) it prints one SHA-256 per line:
+- ``model``: every output array of ``model.run`` in 1 s blocks, and every
+  ``StepOutput`` of a tick-by-tick run (hold, track, sine);
+- ``simulate``: every message of the MCAP that ``leadscrew_sim simulate``
+  writes (topic, log time, publish time, sequence, payload bytes);
+- ``resim``: the same for the MCAP that ``leadscrew_sim resim`` writes of it.
+Two versions of the code agree when the printed lines are identical
+(``diff`` the outputs). Wall-clock metadata is not part of any hash.
+"""
+import argparse
+import hashlib
+import math
+from pathlib import Path
+import tempfile
+
+from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Message
+import numpy as np
+
+from leadscrew_sim import LeadScrewModel, load_preset, preset_names
+from leadscrew_sim.cli import main as cli_main
+
+
+def track_torques(params, n, dt=1e-3, amplitude=0.05, freq=0.5, bandwidth=20.0):
+    """Motor torques [N m] of a PD loop on the motor angle, run tick by tick."""
+    m = LeadScrewModel(params, dt=dt)
+    rt = params.lead / (2 * math.pi)
+    j = params.motor_inertia + params.screw_inertia + \
+        (params.nut_mass + params.payload_mass) * rt ** 2
+    w = 2 * math.pi * bandwidth
+    kp, kd = j * w * w, 2 * 0.7 * w * j
+    hs = params.hand_sign
+    out = np.empty(n)
+    for i in range(n):
+        o = m.output()
+        q_ref = amplitude * math.sin(2 * math.pi * freq * (i * dt)) / rt
+        t_q = kp * (q_ref - hs * o.motor_angle) - kd * hs * o.motor_velocity
+        t_q = min(max(t_q, -params.max_torque), params.max_torque)
+        out[i] = hs * t_q
+        m.advance(out[i])
+    return out
+
+
+def model_hash(params, torques):
+    """SHA-256 of model.run in 1 s blocks and of a tick-by-tick run."""
+    h = hashlib.sha256()
+    m = LeadScrewModel(params, dt=1e-3)
+    for i in range(0, len(torques), 1000):
+        res = m.run(torques[i:i + 1000])
+        for key in sorted(res):
+            h.update(key.encode())
+            h.update(np.ascontiguousarray(res[key]).tobytes())
+    m = LeadScrewModel(params, dt=1e-3)
+    for tq in torques:
+        o = m.step(float(tq))
+        h.update(repr(o).encode())
+    h.update(repr(sorted(m.energy().items())).encode())
+    return h.hexdigest()
+
+
+def mcap_hash(path):
+    """SHA-256 of every message of an MCAP file (topic, times, sequence, payload)."""
+    h = hashlib.sha256()
+    topics = {}
+    count = 0
+    with open(path, 'rb') as f:
+        for rec in StreamReader(f, skip_magic=False).records:
+            if isinstance(rec, Channel):
+                topics[rec.id] = rec.topic
+            elif isinstance(rec, Message):
+                h.update(topics[rec.channel_id].encode())
+                h.update(rec.log_time.to_bytes(8, 'little'))
+                h.update(rec.publish_time.to_bytes(8, 'little'))
+                h.update(rec.sequence.to_bytes(4, 'little'))
+                h.update(rec.data)
+                count += 1
+    return f'{h.hexdigest()} ({count} messages)'
+
+
+def main():
+    """Print the fingerprints."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument('--seconds', type=float, default=10.0)
+    ap.add_argument('--out', help='keep the MCAP files here (default: a temporary directory)')
+    args = ap.parse_args()
+    n = int(round(args.seconds / 1e-3))
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(args.out or tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        for name in preset_names():
+            p = load_preset(name)
+            t = np.arange(n) * 1e-3
+            track = track_torques(p, n)
+            drives = dict(hold=np.zeros(n), track=track,
+                          sine=0.5 * p.max_torque * np.sin(2 * math.pi * t))
+            for drive, tq in drives.items():
+                print(f'{name:<14} {drive:<6} model    {model_hash(p, tq)}', flush=True)
+            csv = out / f'{name}_track.csv'
+            csv.write_text(''.join(f'{k * 1e-3!r},{v!r}\n' for k, v in enumerate(track)))
+            sim_args = dict(hold=['--torque', '0'], track=['--torque-csv', str(csv)],
+                            sine=['--profile', 'sine'], move=['--profile', 'move'])
+            for drive, extra in sim_args.items():
+                f = out / f'{name}_{drive}.mcap'
+                rc = cli_main(['simulate', '--preset', name, '--duration', str(args.seconds),
+                               '-q', '-o', str(f)] + extra)
+                print(f'{name:<14} {drive:<6} simulate rc={rc} {mcap_hash(f)}', flush=True)
+                r = out / f'{name}_{drive}.resim.mcap'
+                rc = cli_main(['resim', str(f), '-q', '-o', str(r)])
+                print(f'{name:<14} {drive:<6} resim    rc={rc} {mcap_hash(r)}', flush=True)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,174 @@
+"""
+Parameter fields with units and ranges: one schema for the physics and the run settings.
+
+A field is a dataclass field whose metadata holds its unit, description,
+range, choices and whether it is read-only at run time. :func:`coerce`
+turns a value from a file, the command line or ROS into the field's type;
+:func:`check` enforces its range. Both raise :class:`ParameterError`,
+whose message names the parameter, the value and the allowed range.
+"""
+import dataclasses
+import math
+
+
+class ParameterError(ValueError):
+    """An invalid parameter value or an inconsistent parameter set."""
+
+    def __init__(self, name, message):
+        """Keep the parameter name; the message reads ``parameter 'name': message``."""
+        super().__init__(f"parameter '{name}': {message}")
+        self.name = name
+
+
+def field(default, unit, desc, lo=None, hi=None, lo_open=False, choices=None,
+          read_only=False):
+    """
+    Return a dataclass field with its schema in the metadata.
+
+    Parameters
+    ----------
+    default : bool, int, float or str
+        Default value.
+    unit : str
+        SI unit, ``'-'`` for dimensionless and non-numeric values.
+    desc : str
+        One-line description.
+    lo, hi : float, optional
+        Allowed range (closed; ``lo_open`` makes the lower bound open).
+    lo_open : bool
+        Exclude ``lo`` itself.
+    choices : tuple of str, optional
+        The allowed values of a string field.
+    read_only : bool
+        The value cannot change while a node runs.
+    """
+    return dataclasses.field(default=default, metadata=dict(
+        unit=unit, description=desc, lo=lo, hi=hi, lo_open=lo_open,
+        choices=choices, read_only=read_only))
+
+
+def _with_unit(value, unit):
+    return f'{value!r}' if unit in ('-', '') else f'{value!r} {unit}'
+
+
+def coerce(f, value):
+    """
+    Return ``value`` as the type of field ``f``.
+
+    Booleans and strings must have their type; an integer field takes an
+    integral float; a floating-point field takes an integer (``0`` for
+    ``0.0``). Raises ParameterError otherwise.
+    """
+    md = f.metadata
+    if f.type in ('bool', bool):
+        if isinstance(value, bool):
+            return value
+        raise ParameterError(f.name, f'{value!r} is not a boolean (true/false)')
+    if f.type in ('str', str):
+        if isinstance(value, str):
+            return value
+        allowed = f'; allowed: {", ".join(md["choices"])}' if md.get('choices') else ''
+        raise ParameterError(f.name, f'{value!r} is not a string{allowed}')
+    if f.type in ('int', int):
+        if isinstance(value, bool) or not (
+                isinstance(value, int) or (isinstance(value, float) and value.is_integer())):
+            raise ParameterError(f.name, f'{value!r} is not an integer')
+        return int(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        unit = '' if md['unit'] in ('-', '') else f' [{md["unit"]}]'
+        raise ParameterError(f.name, f'{value!r} is not a number{unit}')
+    return float(value)
+
+
+def check(f, value):
+    """Raise ParameterError unless ``value`` is finite and within the range of field ``f``."""
+    md = f.metadata
+    if md.get('choices'):
+        if value not in md['choices']:
+            raise ParameterError(f.name, f'{value!r} is not one of {", ".join(md["choices"])}')
+        return
+    if isinstance(value, bool) or f.type in ('bool', bool):
+        if not isinstance(value, bool):
+            raise ParameterError(f.name, f'{value!r} is not a boolean')
+        return
+    if isinstance(value, str) or f.type in ('str', str):
+        if not isinstance(value, str):
+            raise ParameterError(f.name, f'{value!r} is not a string')
+        return
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        unit = '' if md['unit'] in ('-', '') else f' [{md["unit"]}]'
+        raise ParameterError(f.name, f'{value!r} is not a finite number{unit}')
+    lo, hi = md['lo'], md['hi']
+    bad_lo = lo is not None and (value <= lo if md['lo_open'] else value < lo)
+    if bad_lo or (hi is not None and value > hi):
+        bracket = '(' if md['lo_open'] else '['
+        raise ParameterError(f.name, f'{_with_unit(value, md["unit"])} is outside the allowed '
+                             f'range {bracket}{lo}, {hi}]')
+
+
+def from_text(f, text):
+    """Return the value of field ``f`` from its ``str()`` (as metadata records store it)."""
+    if f.type in ('bool', bool):
+        if text in ('True', 'False'):
+            return text == 'True'
+        raise ParameterError(f.name, f'{text!r} is not True or False')
+    if f.type in ('int', int):
+        try:
+            return int(text)
+        except ValueError:
+            raise ParameterError(f.name, f'{text!r} is not an integer') from None
+    if f.type in ('float', float):
+        try:
+            return float(text)
+        except ValueError:
+            raise ParameterError(f.name, f'{text!r} is not a number') from None
+    return text
+
+
+class Schema:
+    """Mix-in of a frozen dataclass of fields: validated construction from mappings."""
+
+    def __post_init__(self):
+        """Check every field, then the set as a whole."""
+        for f in dataclasses.fields(self):
+            check(f, getattr(self, f.name))
+        self._check_consistency()
+
+    def _check_consistency(self):
+        """Check rules between fields (none by default)."""
+
+    def replace(self, **changes):
+        """Return a validated copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self):
+        """Return a plain dict of all fields."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, values, base=None):
+        """Build from a mapping (coerced per field) over ``base``; unknown keys raise."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        for k in values:
+            if k not in known:
+                raise ParameterError(k, f'unknown parameter (known: {", ".join(sorted(known))})')
+        coerced = {k: coerce(known[k], v) for k, v in values.items()}
+        base = base if base is not None else cls()
+        return dataclasses.replace(base, **coerced)
+
+    @classmethod
+    def from_text(cls, values, base=None):
+        """Build from ``{name: str(value)}`` (a metadata record); other keys are ignored."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        return cls.from_dict({k: from_text(known[k], v) for k, v in values.items()
+                              if k in known}, base=base)
+
+    @classmethod
+    def field_info(cls):
+        """Return {name: (type, default, metadata)} for descriptors and docs."""
+        return {f.name: (f.type, f.default, dict(f.metadata)) for f in dataclasses.fields(cls)}
+
+    @classmethod
+    def names(cls):
+        """Return the field names in declaration order."""
+        return tuple(f.name for f in dataclasses.fields(cls))

@@ -1,0 +1,152 @@
+"""
+Validated, immutable physical parameters of the lead screw axis (SI units).
+
+Every field carries its unit, a description and its allowed range in the
+dataclass metadata (:mod:`leadscrew_sim.core.fields`); the ROS node builds its
+parameter descriptors from them. Presets: :mod:`leadscrew_sim.core.presets`.
+"""
+import dataclasses
+import math
+
+from . import geometry
+from .fields import field, ParameterError, Schema
+
+__all__ = ['ParameterError', 'ScrewParams']
+
+
+@dataclasses.dataclass(frozen=True)
+class ScrewParams(Schema):
+    """Physical parameters of screw, nut, load, motor and integration (SI)."""
+
+    # Geometry (physics.md section 1)
+    thread_form: str = field('trapezoidal', '-', 'thread form; sets the axial half-angle psi_a '
+                             '(square 0, acme/stub_acme 14.5 deg, trapezoidal 15 deg)',
+                             choices=tuple(geometry.THREAD_HALF_ANGLES))
+    hand: str = field('right', '-', 'thread hand; right: positive screw rotation moves the nut '
+                      'toward -x', choices=('right', 'left'))
+    major_diameter: float = field(0.012, 'm', 'nominal (major) diameter D', 1e-4, 1.0)
+    pitch: float = field(0.003, 'm', 'thread pitch p', 1e-5, 0.1)
+    starts: int = field(1, '-', 'number of thread starts n_s', 1, 20)
+    pitch_diameter: float = field(0.0, 'm', 'pitch (mean) diameter d_m; 0 means D - p/2', 0.0, 1.0)
+    # Friction (section 6)
+    mu_s: float = field(0.2, '-', 'static thread friction coefficient', 0.0, 2.0)
+    mu_k: float = field(0.15, '-', 'kinetic (Coulomb) thread friction coefficient', 0.0, 2.0)
+    stribeck_velocity: float = field(1e-3, 'm/s', 'Stribeck velocity v_st of the '
+                                     'static-to-kinetic drop', 1e-7, 10.0, lo_open=True)
+    stribeck_exponent: float = field(1.0, '-', 'Stribeck shape exponent delta_st', 0.1, 10.0)
+    mu_viscous: float = field(0.0, 's/m', 'viscous friction slope mu_v (negative: velocity '
+                              'weakening)', -100.0, 100.0)
+    collar_mu: float = field(0.0, '-', 'thrust collar friction coefficient mu_c', 0.0, 2.0)
+    collar_radius: float = field(0.0, 'm', 'thrust collar mean friction radius r_c', 0.0, 1.0)
+    # Thread contact (section 5)
+    backlash: float = field(1e-4, 'm', 'axial backlash b (total free play)', 0.0, 0.1)
+    contact_stiffness: float = field(1e8, 'N/m', 'axial thread contact stiffness k', 1e3, 1e11)
+    contact_damping: float = field(2e3, 'N s/m', 'axial thread contact damping c', 0.0, 1e7)
+    # Bodies (section 4)
+    motor_inertia: float = field(1e-5, 'kg m^2', 'motor rotor inertia J_m', 1e-9, 10.0)
+    screw_inertia: float = field(2e-6, 'kg m^2', 'screw inertia J_s', 1e-9, 10.0)
+    coupling_stiffness: float = field(0.0, 'N m/rad', 'coupling torsional stiffness k_c; '
+                                      '0 means rigid', 0.0, 1e8)
+    coupling_damping: float = field(0.0, 'N m s/rad', 'coupling damping c_c', 0.0, 1e5)
+    bearing_viscous: float = field(1e-5, 'N m s/rad', 'screw bearing viscous damping c_s',
+                                   0.0, 1e3)
+    bearing_coulomb: float = field(0.0, 'N m', 'screw bearing Coulomb torque T_s0', 0.0, 1e3)
+    nut_mass: float = field(0.05, 'kg', 'nut mass m_n', 1e-6, 1e4)
+    payload_mass: float = field(1.0, 'kg', 'payload mass m_p carried by the nut', 0.0, 1e5)
+    guide_viscous: float = field(1.0, 'N s/m', 'nut guide viscous damping c_x', 0.0, 1e6)
+    guide_coulomb: float = field(0.0, 'N', 'nut guide Coulomb force F_x0', 0.0, 1e6)
+    inclination: float = field(math.pi / 2, 'rad', 'axis inclination beta; pi/2 is vertical '
+                               'with +x up', -math.pi / 2, math.pi / 2)
+    gravity: float = field(9.80665, 'm/s^2', 'gravitational acceleration g', 0.0, 100.0)
+    external_force: float = field(0.0, 'N', 'constant external axial force on the nut, +x',
+                                  -1e7, 1e7)
+    stroke_min: float = field(-0.1, 'm', 'lower end stop position x_min', -100.0, 100.0)
+    stroke_max: float = field(0.1, 'm', 'upper end stop position x_max', -100.0, 100.0)
+    end_stop_stiffness: float = field(1e7, 'N/m', 'end stop stiffness', 0.0, 1e11)
+    end_stop_damping: float = field(1e3, 'N s/m', 'end stop damping (never pulls)', 0.0, 1e7)
+    # Motor
+    max_torque: float = field(2.0, 'N m', 'motor torque saturation T_max', 1e-6, 1e5)
+    torque_lag: float = field(0.0, 's', 'motor torque first-order lag tau_e; 0 means none',
+                              0.0, 10.0)
+    # Anti-backlash split nut (section 7)
+    anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring')
+    preload_force: float = field(0.0, 'N', 'anti-backlash preload F_p', 0.0, 1e6)
+    preload_stiffness: float = field(1e5, 'N/m', 'anti-backlash spring stiffness k_p',
+                                     1.0, 1e10)
+    second_nut_mass: float = field(0.01, 'kg', 'mass of the second half-nut m_b', 1e-6, 1e4)
+    # Initial state and integration (section 8)
+    initial_position: float = field(0.0, 'm', 'initial nut position x_0', -100.0, 100.0)
+    substep: float = field(0.0, 's', 'integration substep upper bound; 0 means automatic '
+                           '(0.2 / omega_max of the stiffest mode)', 0.0, 1e-2)
+
+    # Derived geometry -------------------------------------------------------
+    @property
+    def lead(self):
+        """Lead l [m]."""
+        return geometry.lead(self.pitch, self.starts)
+
+    @property
+    def mean_diameter(self):
+        """Effective pitch diameter d_m [m]."""
+        return self.pitch_diameter or geometry.pitch_diameter(self.major_diameter, self.pitch)
+
+    @property
+    def r_m(self):
+        """Pitch radius r_m [m]."""
+        return self.mean_diameter / 2.0
+
+    @property
+    def lead_angle(self):
+        """Lead angle lambda [rad]."""
+        return geometry.lead_angle(self.lead, self.mean_diameter)
+
+    @property
+    def half_angle(self):
+        """Axial thread half-angle psi_a [rad]."""
+        return geometry.THREAD_HALF_ANGLES[self.thread_form]
+
+    @property
+    def thread_factor(self):
+        """1 / cos(psi_n): multiplies mu to give mu'."""
+        return 1.0 / math.cos(geometry.normal_half_angle(self.half_angle, self.lead_angle))
+
+    @property
+    def hand_sign(self):
+        """Return h of q = h theta: -1 for a right-hand thread, +1 for left."""
+        return -1.0 if self.hand == 'right' else 1.0
+
+    @property
+    def moving_mass(self):
+        """All axially moving mass [kg]."""
+        return self.nut_mass + self.payload_mass + (
+            self.second_nut_mass if self.anti_backlash else 0.0)
+
+    @property
+    def self_locking(self):
+        """Return True if the thread holds any axial load with zero torque."""
+        return geometry.is_self_locking(self.mu_s * self.thread_factor, self.lead_angle)
+
+    def _check_consistency(self):
+        if self.pitch_diameter == 0.0 and self.major_diameter - self.pitch / 2.0 <= 0.0:
+            raise ParameterError('pitch', f'{self.pitch} m gives a pitch diameter '
+                                 f'D - p/2 <= 0 with major_diameter {self.major_diameter} m')
+        if self.pitch_diameter > self.major_diameter:
+            raise ParameterError('pitch_diameter', f'{self.pitch_diameter} m exceeds '
+                                 f'major_diameter {self.major_diameter} m')
+        if self.backlash >= self.pitch:
+            raise ParameterError('backlash', f'{self.backlash} m must be smaller than the '
+                                 f'pitch {self.pitch} m')
+        if self.stroke_min >= self.stroke_max:
+            raise ParameterError('stroke_min', f'{self.stroke_min} m must be below '
+                                 f'stroke_max {self.stroke_max} m')
+        if not self.stroke_min <= self.initial_position <= self.stroke_max:
+            raise ParameterError('initial_position', f'{self.initial_position} m lies '
+                                 f'outside the stroke [{self.stroke_min}, {self.stroke_max}] m')
+        jam = max(self.mu_s, self.mu_k) * self.thread_factor * math.tan(self.lead_angle)
+        if jam >= 1.0:
+            raise ParameterError('mu_s', f"mu' tan(lambda) = {jam:.3g}"
+                                 ' >= 1: the thread jams and cannot be driven against a load'
+                                 ' (reduce friction or the lead angle)')
+        if self.collar_mu > 0.0 and self.collar_radius == 0.0:
+            raise ParameterError('collar_radius', '0 m while collar_mu > 0: give the collar '
+                                 'friction radius')

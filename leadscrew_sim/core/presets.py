@@ -1,0 +1,71 @@
+"""
+Presets: the parameter files shipped in ``config/``, found in the source tree or an install.
+"""
+import os
+from pathlib import Path
+import sys
+
+from . import yamlio
+from .fields import ParameterError
+from .params import ScrewParams
+
+
+def config_dirs():
+    """Directories searched for preset YAML files, in order."""
+    dirs = []
+    if os.environ.get('LEADSCREW_SIM_CONFIG'):
+        dirs.append(Path(os.environ['LEADSCREW_SIM_CONFIG']))
+    here = Path(__file__).resolve().parent
+    dirs.append(here.parents[1] / 'config')                 # source tree / editable
+    prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    prefixes += [sys.prefix]
+    for parent in here.parents:                             # <prefix>/lib/pythonX/site-packages
+        if parent.name == 'lib':
+            prefixes.insert(0, str(parent.parent))
+            break
+    dirs += [Path(p) / 'share' / 'leadscrew_sim' / 'config' for p in prefixes]
+    return [d for d in dirs if d.is_dir()]
+
+
+def preset_names():
+    """Names of all presets found."""
+    names = set()
+    for d in config_dirs():
+        names.update(p.stem for p in d.glob('*.yaml'))
+    return sorted(names)
+
+
+def preset_path(name):
+    """Path of the YAML file of a named preset."""
+    for d in config_dirs():
+        p = d / f'{name}.yaml'
+        if p.is_file():
+            return p
+    raise ParameterError('preset', f'{name!r} is not a known preset '
+                         f'(known: {", ".join(preset_names()) or "none found"})')
+
+
+def read_parameter_file(path):
+    """Read the ros__parameters mapping of a ROS 2 parameter YAML file."""
+    with open(path) as fh:
+        doc = yamlio.load(fh) or {}
+    for node in doc.values():
+        if isinstance(node, dict) and 'ros__parameters' in node:
+            return dict(node['ros__parameters'])
+    raise ParameterError('preset', f'{path} has no <node>: ros__parameters: section')
+
+
+def physics_subset(values):
+    """Split a parameter mapping into (physics fields, other keys)."""
+    names = set(ScrewParams.names())
+    phys = {k: v for k, v in values.items() if k in names}
+    other = {k: v for k, v in values.items() if k not in names}
+    return phys, other
+
+
+def load_preset(name, **overrides):
+    """Load a named preset (or a YAML path) and apply overrides."""
+    path = Path(name) if str(name).endswith(('.yaml', '.yml')) else preset_path(name)
+    phys, _ = physics_subset(read_parameter_file(path))
+    params = ScrewParams.from_dict(phys)
+    return ScrewParams.from_dict(overrides, base=params) if overrides else params

@@ -1,0 +1,34 @@
+"""
+The topic table: every topic of the node with its type, role and QoS.
+
+The node creates its publishers and subscriptions from it, and the offline
+tools write and find the same channels in MCAP files.
+"""
+
+#: QoS of every command and state topic: reliable, volatile, keep last 10
+#: (joint_state_broadcaster convention: best-effort and reliable subscribers connect).
+RELIABLE_10 = dict(reliability='reliable', durability='volatile', depth=10)
+
+#: Relative topic name -> (message type, role, QoS). '/clock' is absolute, as the
+#: node publishes it.
+TOPICS = {
+    'torque_command': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
+    'joint_commands': ('sensor_msgs/msg/JointState', 'command', RELIABLE_10),
+    'external_force': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
+    'joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
+    'nut_position': ('std_msgs/msg/Float64', 'state', RELIABLE_10),
+    'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state', RELIABLE_10),
+    '/clock': ('rosgraph_msgs/msg/Clock', 'clock', RELIABLE_10),
+}
+
+#: Topics in the order the node registers its recording channels.
+COMMAND_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'command')
+STATE_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'state')
+
+
+def resolve(topic, namespace='/'):
+    """Return the resolved name of a relative topic in ``namespace`` (``'/'`` default)."""
+    if topic.startswith('/'):
+        return topic
+    ns = namespace.rstrip('/')
+    return f'{ns}/{topic}'
