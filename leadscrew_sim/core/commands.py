@@ -56,10 +56,17 @@ class CommandHold:
 
     def torque_command(self, value, time_ns):
         """
-        Hold motor torque ``value`` [N m] from ``time_ns``; return a rejection reason or None.
+        Hold a motor torque command; return a rejection reason or None.
 
         Clears ``stale``; the caller can tell a resumed command from ``stale``
         before the call.
+
+        Parameters
+        ----------
+        value : float
+            Motor torque [N m], theta sense.
+        time_ns : int
+            Time of the command [ns], the base of its age.
         """
         if not math.isfinite(value):
             return f'non-finite torque_command {value!r}'
@@ -74,6 +81,15 @@ class CommandHold:
 
         Returns ``(result, reason)``: :data:`ACCEPTED`, :data:`IGNORED` (the
         message does not name our joint) or :data:`REJECTED` with the reason.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The message's joint names.
+        efforts : sequence of float
+            The message's efforts [N m for the screw joint].
+        time_ns : int
+            Time of the command [ns].
         """
         joint = self.screw_joint
         count = list(names).count(joint)
@@ -91,7 +107,14 @@ class CommandHold:
         return ACCEPTED, None
 
     def external_force(self, value):
-        """Hold the external force ``value`` [N]; return a rejection reason or None."""
+        """
+        Hold an external force command; return a rejection reason or None.
+
+        Parameters
+        ----------
+        value : float
+            Axial force on the nut along +x [N].
+        """
         # A finite but huge force (1e308 N) would drive the state to Inf and stop
         # the integration: refuse what the parameter range refuses.
         if not abs(value) <= EXTERNAL_FORCE_LIMIT:
@@ -105,6 +128,11 @@ class CommandHold:
         Return the motor torque [N m] to apply at ``now_ns``: the held one, or 0 once stale.
 
         Sets ``stale`` when the held torque command is older than the timeout.
+
+        Parameters
+        ----------
+        now_ns : int
+            The current time [ns], in the time base of the commands.
         """
         if self.cmd_time is not None and self.timeout > 0.0 and (
                 now_ns - self.cmd_time) > self.timeout * NS:

@@ -8,6 +8,7 @@ turns a value from a file, the command line or ROS into the field's type;
 whose message names the parameter, the value and the allowed range.
 """
 import dataclasses
+import inspect
 import math
 
 
@@ -123,6 +124,32 @@ def from_text(f, text):
         except ValueError:
             raise ParameterError(f.name, f'{text!r} is not a number') from None
     return text
+
+
+def document(cls):
+    """
+    Append a numpydoc Parameters section, built from the field metadata, to a schema class.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass of :func:`field` fields; returned with its docstring extended.
+    """
+    lines = ['', 'Parameters', '----------']
+    for f in dataclasses.fields(cls):
+        md = f.metadata
+        typ = getattr(f.type, '__name__', str(f.type))
+        lines.append(f'{f.name} : {typ}')
+        rng = ''
+        if md.get('choices'):
+            rng = f' One of: {", ".join(md["choices"])}.'
+        elif md.get('lo') is not None:
+            rng = f' Range {"(" if md["lo_open"] else "["}{md["lo"]}, {md["hi"]}].'
+        unit = '' if md['unit'] in ('-', '') else f' [{md["unit"]}]'
+        ro = ' Read-only at run time.' if md.get('read_only') else ''
+        lines.append(f'    {md["description"]}{unit}. Default {f.default!r}.{rng}{ro}')
+    cls.__doc__ = inspect.cleandoc(cls.__doc__ or '') + '\n' + '\n'.join(lines) + '\n'
+    return cls
 
 
 class Schema:

@@ -11,7 +11,9 @@ import math
 
 import numpy as np
 
+from . import friction as F
 from . import kernel as K
+from . import layout as L
 from .faults import SimulationFault
 from .params import ParameterError, ScrewParams
 
@@ -54,44 +56,44 @@ def pack_params(p):
     """Flatten ScrewParams into the kernel's parameter vector."""
     lam = p.lead_angle
     tf = p.thread_factor
-    v = np.zeros(K.NP)
-    v[K.P_RT] = p.r_m * math.tan(lam)
-    v[K.P_RC] = p.r_m * math.cos(lam)
-    v[K.P_SL] = math.sin(lam)
-    v[K.P_CL] = math.cos(lam)
-    v[K.P_MUS] = p.mu_s * tf
-    v[K.P_MUK] = p.mu_k * tf
-    v[K.P_VST] = p.stribeck_velocity
-    v[K.P_DST] = p.stribeck_exponent
-    v[K.P_MUV] = p.mu_viscous * tf
-    v[K.P_B] = p.backlash
-    v[K.P_K] = p.contact_stiffness
-    v[K.P_C] = p.contact_damping
-    v[K.P_JM] = p.motor_inertia
-    v[K.P_JS] = p.screw_inertia
-    v[K.P_KC] = p.coupling_stiffness
-    v[K.P_CC] = p.coupling_damping
-    v[K.P_RIGID] = 1.0 if p.coupling_stiffness == 0.0 else 0.0
-    v[K.P_CS] = p.bearing_viscous
-    v[K.P_TS0] = p.bearing_coulomb
-    v[K.P_MUC] = p.collar_mu
-    v[K.P_RCOL] = p.collar_radius
-    v[K.P_MA] = p.nut_mass + p.payload_mass
-    v[K.P_MB] = p.second_nut_mass
-    v[K.P_CX] = p.guide_viscous
-    v[K.P_FX0] = p.guide_coulomb
-    v[K.P_GS] = p.gravity * math.sin(p.inclination)
-    v[K.P_KES] = p.end_stop_stiffness
-    v[K.P_CES] = p.end_stop_damping
-    v[K.P_XMIN] = p.stroke_min
-    v[K.P_XMAX] = p.stroke_max
-    v[K.P_TMAX] = p.max_torque
-    v[K.P_TAU] = p.torque_lag
-    v[K.P_AB] = 1.0 if p.anti_backlash else 0.0
-    v[K.P_FP] = p.preload_force
-    v[K.P_KP] = p.preload_stiffness
-    v[K.P_FEXT] = p.external_force
-    v[K.P_ZCUT] = K._stribeck_cut(v[K.P_MUK], v[K.P_MUS] - v[K.P_MUK], v[K.P_DST])
+    v = np.zeros(L.NP)
+    v[L.P_RT] = p.r_m * math.tan(lam)
+    v[L.P_RC] = p.r_m * math.cos(lam)
+    v[L.P_SL] = math.sin(lam)
+    v[L.P_CL] = math.cos(lam)
+    v[L.P_MUS] = p.mu_s * tf
+    v[L.P_MUK] = p.mu_k * tf
+    v[L.P_VST] = p.stribeck_velocity
+    v[L.P_DST] = p.stribeck_exponent
+    v[L.P_MUV] = p.mu_viscous * tf
+    v[L.P_B] = p.backlash
+    v[L.P_K] = p.contact_stiffness
+    v[L.P_C] = p.contact_damping
+    v[L.P_JM] = p.motor_inertia
+    v[L.P_JS] = p.screw_inertia
+    v[L.P_KC] = p.coupling_stiffness
+    v[L.P_CC] = p.coupling_damping
+    v[L.P_RIGID] = 1.0 if p.coupling_stiffness == 0.0 else 0.0
+    v[L.P_CS] = p.bearing_viscous
+    v[L.P_TS0] = p.bearing_coulomb
+    v[L.P_MUC] = p.collar_mu
+    v[L.P_RCOL] = p.collar_radius
+    v[L.P_MA] = p.nut_mass + p.payload_mass
+    v[L.P_MB] = p.second_nut_mass
+    v[L.P_CX] = p.guide_viscous
+    v[L.P_FX0] = p.guide_coulomb
+    v[L.P_GS] = p.gravity * math.sin(p.inclination)
+    v[L.P_KES] = p.end_stop_stiffness
+    v[L.P_CES] = p.end_stop_damping
+    v[L.P_XMIN] = p.stroke_min
+    v[L.P_XMAX] = p.stroke_max
+    v[L.P_TMAX] = p.max_torque
+    v[L.P_TAU] = p.torque_lag
+    v[L.P_AB] = 1.0 if p.anti_backlash else 0.0
+    v[L.P_FP] = p.preload_force
+    v[L.P_KP] = p.preload_stiffness
+    v[L.P_FEXT] = p.external_force
+    v[L.P_ZCUT] = F._stribeck_cut(v[L.P_MUK], v[L.P_MUS] - v[L.P_MUK], v[L.P_DST])
     return v
 
 
@@ -147,8 +149,20 @@ class LeadScrewModel:
     """
     A lead screw axis: validated parameters, a state vector and step().
 
-    The state is a plain float64 array (layout in ``kernel``); ``step``
-    advances it by exactly ``dt`` in equal substeps.
+    The state is a plain float64 array (layout in :mod:`leadscrew_sim.core.layout`);
+    ``step`` advances it by exactly ``dt`` in equal substeps.
+
+    Parameters
+    ----------
+    params : ScrewParams, optional
+        Physical parameters (default: ``ScrewParams()``, the tr12x3 axis).
+    dt : float
+        Fixed step [s]; the model integrates it in ``nsub`` equal substeps.
+
+    Raises
+    ------
+    ParameterError
+        If the stiffest mode needs more than ``MAX_SUBSTEPS_PER_STEP`` substeps.
     """
 
     def __init__(self, params=None, dt=1e-3):
@@ -158,8 +172,8 @@ class LeadScrewModel:
         self.dt = float(dt)
         self.substep = auto_substep(self.params)
         self.nsub = self.substeps_for(self.dt)
-        self.state = np.zeros(K.NS)
-        self.out = np.zeros(K.NO)
+        self.state = np.zeros(L.NS)
+        self.out = np.zeros(L.NO)
         self._wk, self._iwk = K.workspace()
         self.fault = None
         self.reset()
@@ -168,9 +182,18 @@ class LeadScrewModel:
         """
         Swap in new parameters at run time, keeping the state.
 
-        Raises ParameterError (state untouched) if the new set needs more
-        substeps than allowed. Geometry and the anti-backlash flag change the
-        meaning of the state; callers should treat them as read-only.
+        Geometry and the anti-backlash flag change the meaning of the state;
+        callers should treat them as read-only.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The new physical parameters.
+
+        Raises
+        ------
+        ParameterError
+            If the new set needs more substeps than allowed (nothing changes).
         """
         new_h = auto_substep(params)
         old = (self.params, self._P, self.substep, self.nsub)
@@ -182,7 +205,14 @@ class LeadScrewModel:
             raise
 
     def substeps_for(self, dt):
-        """Return the number of equal substeps for a step of dt [s]."""
+        """
+        Return the number of equal substeps for a step of ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Step [s], positive and finite.
+        """
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ParameterError('dt', f'{dt!r} s must be a positive finite step')
         n = max(1, math.ceil(dt / self.substep - 1e-9))
@@ -198,19 +228,19 @@ class LeadScrewModel:
         p = self.params
         s = self.state
         s[:] = 0.0
-        rt = self._P[K.P_RT]
+        rt = self._P[L.P_RT]
         hb = 0.5 * p.backlash
         x0 = p.initial_position
         if p.anti_backlash:
             delta_a = -hb
         else:
-            f0 = p.external_force - (p.nut_mass + p.payload_mass) * self._P[K.P_GS]
+            f0 = p.external_force - (p.nut_mass + p.payload_mass) * self._P[L.P_GS]
             delta_a = 0.0 if f0 == 0.0 else (
                 (-hb + f0 / p.contact_stiffness) if f0 < 0 else (hb + f0 / p.contact_stiffness))
         q0 = (x0 - delta_a) / rt
-        s[K.S_Q] = s[K.S_QM] = q0
-        s[K.S_XA] = x0
-        s[K.S_XB] = x0 + p.backlash if p.anti_backlash else x0
+        s[L.S_Q] = s[L.S_QM] = q0
+        s[L.S_XA] = x0
+        s[L.S_XB] = x0 + p.backlash if p.anti_backlash else x0
         self.fault = None
         self.out[:] = 0.0
         self._e0 = self._stored_energy()
@@ -219,17 +249,40 @@ class LeadScrewModel:
     # Stepping ---------------------------------------------------------------
     def step(self, torque, dt=None, external_force=0.0):
         """
-        Advance by dt [s] (default: the model's dt) under a motor torque [N m].
+        Advance by one step under a motor torque and return its StepOutput.
 
-        torque follows the theta sense; external_force [N] acts on the nut
-        along +x in addition to the parameter. Non-finite inputs raise
-        ValueError and never reach the integrator. Returns a StepOutput.
+        Parameters
+        ----------
+        torque : float
+            Motor torque command [N m], theta sense (saturated at ``max_torque``).
+        dt : float, optional
+            Step [s]; default the model's ``dt``.
+        external_force : float
+            Axial force on the nut along +x [N], in addition to the parameter.
+
+        Raises
+        ------
+        ValueError
+            If an input is not finite (it never reaches the integrator).
+        SimulationFault
+            If the state became non-finite (the state is the one before the step).
         """
         self.advance(torque, dt, external_force)
         return self.output()
 
     def advance(self, torque, dt=None, external_force=0.0):
-        """Like step() but returns nothing (the fast path)."""
+        """
+        Advance by one step, like :meth:`step`, but return nothing (the fast path).
+
+        Parameters
+        ----------
+        torque : float
+            Motor torque command [N m], theta sense.
+        dt : float, optional
+            Step [s]; default the model's ``dt``.
+        external_force : float
+            Axial force on the nut along +x [N].
+        """
         if not (math.isfinite(torque) and math.isfinite(external_force)):
             raise ValueError(f'non-finite input: torque={torque!r} N m, '
                              f'external_force={external_force!r} N')
@@ -241,19 +294,35 @@ class LeadScrewModel:
         rc = K.step(self._P, self.state, self.out, self._P_hand() * torque,
                     float(external_force), float(dt), n, self._wk, self._iwk)
         if rc != 0:   # the kernel left the state as it was before this step
-            self._fail(f'non-finite state at t={self.state[K.S_T]:.6f} s '
+            self._fail(f'non-finite state at t={self.state[L.S_T]:.6f} s '
                        f'(torque {torque} N m); integration stopped')
 
     def run(self, torques, external_forces=None):
         """
-        Run one step of self.dt per torque [N m] in a single compiled call.
+        Run one step of ``dt`` per torque in a single compiled call.
 
-        Returns a dict of arrays (time, screw_angle, screw_velocity,
-        motor_angle, motor_velocity, nut_position, nut_velocity, motor_torque,
-        axial_force, thread_torque, friction_force, normal_leading,
-        normal_trailing, sliding_velocity, contact, stuck), one entry per
-        step, in the same units and senses as StepOutput. Non-finite inputs
-        raise ValueError before anything runs.
+        Parameters
+        ----------
+        torques : array_like of float
+            Motor torque command of each step [N m], theta sense.
+        external_forces : array_like of float, optional
+            Axial force on the nut along +x of each step [N]; default zeros.
+
+        Returns
+        -------
+        dict of numpy.ndarray
+            time, screw_angle, screw_velocity, motor_angle, motor_velocity,
+            nut_position, nut_velocity, motor_torque, axial_force,
+            thread_torque, friction_force, normal_leading, normal_trailing,
+            sliding_velocity, contact, stuck: one entry per step, in the units
+            and senses of StepOutput.
+
+        Raises
+        ------
+        ValueError
+            If an input is not finite or the lengths differ (before anything runs).
+        SimulationFault
+            If the state became non-finite.
         """
         tq = np.ascontiguousarray(torques, dtype=float)
         fe = (np.zeros_like(tq) if external_forces is None
@@ -261,7 +330,7 @@ class LeadScrewModel:
         if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
             raise ValueError('torques and external_forces must be finite and of equal length')
         self._check_fault()
-        rec = np.empty((len(tq), K.REC_STATE + K.NO))
+        rec = np.empty((len(tq), L.REC_STATE + L.NO))
         hs = self.params.hand_sign
         done = K.run_series(self._P, self.state, self.out, tq if hs == 1 else -tq, fe,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
@@ -269,16 +338,16 @@ class LeadScrewModel:
 
         def hand(col):   # a q-sense column in the physical sense (a view for right hand)
             return r[:, col] if hs == 1 else -r[:, col]
-        o = K.REC_STATE
+        o = L.REC_STATE
         res = dict(
-            time=r[:, K.S_T], screw_angle=hand(K.S_Q), screw_velocity=hand(K.S_DQ),
-            motor_angle=hand(K.S_QM), motor_velocity=hand(K.S_WM),
-            nut_position=r[:, K.S_XA], nut_velocity=r[:, K.S_VA],
-            motor_torque=hand(o + K.O_TE) + 0.0, axial_force=r[:, o + K.O_FAX],
-            thread_torque=hand(o + K.O_TTH), friction_force=r[:, o + K.O_FFA],
-            normal_leading=r[:, o + K.O_NLA], normal_trailing=r[:, o + K.O_NUA],
-            sliding_velocity=r[:, o + K.O_VSA], contact=r[:, o + K.O_CONTA].astype(int),
-            stuck=r[:, o + K.O_STICKA] == 1.0)
+            time=r[:, L.S_T], screw_angle=hand(L.S_Q), screw_velocity=hand(L.S_DQ),
+            motor_angle=hand(L.S_QM), motor_velocity=hand(L.S_WM),
+            nut_position=r[:, L.S_XA], nut_velocity=r[:, L.S_VA],
+            motor_torque=hand(o + L.O_TE) + 0.0, axial_force=r[:, o + L.O_FAX],
+            thread_torque=hand(o + L.O_TTH), friction_force=r[:, o + L.O_FFA],
+            normal_leading=r[:, o + L.O_NLA], normal_trailing=r[:, o + L.O_NUA],
+            sliding_velocity=r[:, o + L.O_VSA], contact=r[:, o + L.O_CONTA].astype(int),
+            stuck=r[:, o + L.O_STICKA] == 1.0)
         if done < len(tq):
             self._fail(f'non-finite state at step {done}; integration stopped')
         return res
@@ -286,7 +355,7 @@ class LeadScrewModel:
     def _check_fault(self):
         """Raise the latched SimulationFault again, if any (until reset())."""
         if self.fault:
-            raise SimulationFault(self.fault, self.state[K.S_T])
+            raise SimulationFault(self.fault, self.state[L.S_T])
 
     def _fail(self, message):
         """Latch a fault and raise it: the one place a SimulationFault is created."""
@@ -300,7 +369,7 @@ class LeadScrewModel:
     @property
     def time(self):
         """Return the simulated time [s]."""
-        return self.state[K.S_T]
+        return self.state[L.S_T]
 
     def joint_values(self):
         """
@@ -311,50 +380,50 @@ class LeadScrewModel:
         [N m]): the same values as the fields of :meth:`output`.
         """
         s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
-        return (hs * s[K.S_Q], s[K.S_XA], hs * s[K.S_DQ], s[K.S_VA], hs * o[K.O_TE] + 0.0,
-                o[K.O_FAX], hs * o[K.O_TTH])
+        return (hs * s[L.S_Q], s[L.S_XA], hs * s[L.S_DQ], s[L.S_VA], hs * o[L.O_TE] + 0.0,
+                o[L.O_FAX], hs * o[L.O_TTH])
 
     def output(self):
         """Return the StepOutput of the current state and last step."""
         s, o, hs = self.state, self.out, self.params.hand_sign
         return StepOutput(
-            time=s[K.S_T], motor_angle=hs * s[K.S_QM], motor_velocity=hs * s[K.S_WM],
-            screw_angle=hs * s[K.S_Q], screw_velocity=hs * s[K.S_DQ],
-            nut_position=s[K.S_XA], nut_velocity=s[K.S_VA], nut_b_position=s[K.S_XB],
-            motor_torque=hs * o[K.O_TE] + 0.0, normal_leading=o[K.O_NLA],
-            normal_trailing=o[K.O_NUA], friction_force=o[K.O_FFA],
-            sliding_velocity=o[K.O_VSA], contact=int(o[K.O_CONTA]),
-            stuck=bool(o[K.O_STICKA] == 1.0), axial_force=o[K.O_FAX],
-            thread_torque=hs * o[K.O_TTH], substeps=int(o[K.O_NSUB]))
+            time=s[L.S_T], motor_angle=hs * s[L.S_QM], motor_velocity=hs * s[L.S_WM],
+            screw_angle=hs * s[L.S_Q], screw_velocity=hs * s[L.S_DQ],
+            nut_position=s[L.S_XA], nut_velocity=s[L.S_VA], nut_b_position=s[L.S_XB],
+            motor_torque=hs * o[L.O_TE] + 0.0, normal_leading=o[L.O_NLA],
+            normal_trailing=o[L.O_NUA], friction_force=o[L.O_FFA],
+            sliding_velocity=o[L.O_VSA], contact=int(o[L.O_CONTA]),
+            stuck=bool(o[L.O_STICKA] == 1.0), axial_force=o[L.O_FAX],
+            thread_torque=hs * o[L.O_TTH], substeps=int(o[L.O_NSUB]))
 
     def _stored_energy(self):
         """(kinetic, potential, spring) energy of the current state [J]."""
         p, s, P = self.params, self.state, self._P
-        rigid = P[K.P_RIGID] > 0.5
-        ma, mb = P[K.P_MA], P[K.P_MB]
+        rigid = P[L.P_RIGID] > 0.5
+        ma, mb = P[L.P_MA], P[L.P_MB]
         if rigid:
-            kin = 0.5 * (p.motor_inertia + p.screw_inertia) * s[K.S_DQ] ** 2
+            kin = 0.5 * (p.motor_inertia + p.screw_inertia) * s[L.S_DQ] ** 2
         else:
-            kin = 0.5 * p.motor_inertia * s[K.S_WM] ** 2 + 0.5 * p.screw_inertia * s[K.S_DQ] ** 2
-        kin += 0.5 * ma * s[K.S_VA] ** 2
-        pot = P[K.P_GS] * ma * s[K.S_XA]
-        rt, hb, k = P[K.P_RT], 0.5 * p.backlash, p.contact_stiffness
+            kin = 0.5 * p.motor_inertia * s[L.S_WM] ** 2 + 0.5 * p.screw_inertia * s[L.S_DQ] ** 2
+        kin += 0.5 * ma * s[L.S_VA] ** 2
+        pot = P[L.P_GS] * ma * s[L.S_XA]
+        rt, hb, k = P[L.P_RT], 0.5 * p.backlash, p.contact_stiffness
         spring = 0.0
-        bodies = [s[K.S_XA]]
+        bodies = [s[L.S_XA]]
         if p.anti_backlash:
-            kin += 0.5 * mb * s[K.S_VB] ** 2
-            pot += P[K.P_GS] * mb * s[K.S_XB]
-            bodies.append(s[K.S_XB])
-            stretch = p.backlash + p.preload_force / p.preload_stiffness - (s[K.S_XB] - s[K.S_XA])
+            kin += 0.5 * mb * s[L.S_VB] ** 2
+            pot += P[L.P_GS] * mb * s[L.S_XB]
+            bodies.append(s[L.S_XB])
+            stretch = p.backlash + p.preload_force / p.preload_stiffness - (s[L.S_XB] - s[L.S_XA])
             spring += 0.5 * p.preload_stiffness * stretch ** 2
         for x in bodies:
-            d = x - rt * s[K.S_Q]
+            d = x - rt * s[L.S_Q]
             for e in (-d - hb, d - hb):
                 if e > 0:
                     spring += 0.5 * k * e * e
         if not rigid:
-            spring += 0.5 * p.coupling_stiffness * (s[K.S_QM] - s[K.S_Q]) ** 2
-        for pen in (p.stroke_min - s[K.S_XA], s[K.S_XA] - p.stroke_max):
+            spring += 0.5 * p.coupling_stiffness * (s[L.S_QM] - s[L.S_Q]) ** 2
+        for pen in (p.stroke_min - s[L.S_XA], s[L.S_XA] - p.stroke_max):
             if pen > 0:
                 spring += 0.5 * p.end_stop_stiffness * pen * pen
         return kin, pot, spring
@@ -365,9 +434,9 @@ class LeadScrewModel:
         k0, p0, s0 = self._e0
         s = self.state
         terms = dict(
-            input_work=s[K.S_WIN], external_work=s[K.S_WEXT],
+            input_work=s[L.S_WIN], external_work=s[L.S_WEXT],
             kinetic=kin - k0, potential=pot - p0, spring=spring - s0,
-            friction_dissipation=s[K.S_EFRIC], damping_dissipation=s[K.S_EDAMP])
+            friction_dissipation=s[L.S_EFRIC], damping_dissipation=s[L.S_EDAMP])
         terms['residual'] = (terms['input_work'] + terms['external_work'] - terms['kinetic']
                              - terms['potential'] - terms['spring']
                              - terms['friction_dissipation'] - terms['damping_dissipation'])

@@ -9,11 +9,12 @@ import dataclasses
 import math
 
 from . import geometry
-from .fields import field, ParameterError, Schema
+from .fields import document, field, ParameterError, Schema
 
 __all__ = ['ParameterError', 'ScrewParams']
 
 
+@document
 @dataclasses.dataclass(frozen=True)
 class ScrewParams(Schema):
     """Physical parameters of screw, nut, load, motor and integration (SI)."""

@@ -36,7 +36,14 @@ def preset_names():
 
 
 def preset_path(name):
-    """Path of the YAML file of a named preset."""
+    """
+    Return the path of the YAML file of a named preset.
+
+    Parameters
+    ----------
+    name : str
+        Preset name, the file name in ``config/`` without ``.yaml``.
+    """
     for d in config_dirs():
         p = d / f'{name}.yaml'
         if p.is_file():
@@ -46,7 +53,15 @@ def preset_path(name):
 
 
 def read_parameter_file(path):
-    """Read the ros__parameters mapping of a ROS 2 parameter YAML file."""
+    """
+    Return the ``ros__parameters`` mapping of a ROS 2 parameter YAML file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file; its first key holding ``ros__parameters`` counts
+        (``/**``, a node name or a namespaced node name).
+    """
     with open(path) as fh:
         doc = yamlio.load(fh) or {}
     for node in doc.values():
@@ -56,7 +71,14 @@ def read_parameter_file(path):
 
 
 def physics_subset(values):
-    """Split a parameter mapping into (physics fields, other keys)."""
+    """
+    Split a parameter mapping into (physics fields, other keys).
+
+    Parameters
+    ----------
+    values : dict
+        Parameter name -> value.
+    """
     names = set(ScrewParams.names())
     phys = {k: v for k, v in values.items() if k in names}
     other = {k: v for k, v in values.items() if k not in names}
@@ -64,7 +86,21 @@ def physics_subset(values):
 
 
 def load_preset(name, **overrides):
-    """Load a named preset (or a YAML path) and apply overrides."""
+    """
+    Load a preset and apply overrides.
+
+    Parameters
+    ----------
+    name : str
+        Preset name (see :func:`preset_names`) or the path of a ``.yaml`` file.
+    **overrides
+        Physical parameters to change, in their SI units (see ScrewParams).
+
+    Returns
+    -------
+    ScrewParams
+        The validated parameter set.
+    """
     path = Path(name) if str(name).endswith(('.yaml', '.yml')) else preset_path(name)
     phys, _ = physics_subset(read_parameter_file(path))
     params = ScrewParams.from_dict(phys)

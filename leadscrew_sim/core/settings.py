@@ -8,7 +8,7 @@ so each value is coerced and checked in one place.
 import dataclasses
 import re
 
-from .fields import field, ParameterError, Schema
+from .fields import document, field, ParameterError, Schema
 
 #: The clock modes of the node.
 CLOCK_MODES = ('realtime', 'stepped', 'lockstep')
@@ -25,6 +25,7 @@ __all__ = ['CLOCK_MODES', 'MAX_JOINT_PREFIX', 'MIN_SPLIT_BYTES', 'MIN_SPLIT_SECO
            'PREFIX_RE', 'RunSettings']
 
 
+@document
 @dataclasses.dataclass(frozen=True)
 class RunSettings(Schema):
     """Rate, clock, command and recording settings of a run (SI units)."""

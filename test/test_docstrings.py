@@ -1,0 +1,107 @@
+"""
+The public core API documents every argument (numpydoc ``Parameters`` sections), as python-control checks.
+
+A public function or method whose signature has an argument that its
+docstring's Parameters section does not list fails here, naming both. Every
+field of the parameter schemas has a unit and a description.
+"""
+import inspect
+import re
+
+import pytest
+
+from leadscrew_sim import core
+from leadscrew_sim.core import commands, fields, presets
+from leadscrew_sim.core.settings import RunSettings
+
+#: The public core API: model construction, stepping, running, parameters.
+API = [core.LeadScrewModel, core.ScrewParams, core.load_preset, presets.preset_path,
+       presets.read_parameter_file, presets.physics_subset, fields.field,
+       commands.CommandHold, RunSettings]
+
+
+def documented_parameters(doc):
+    """Return the names listed in the numpydoc Parameters section of ``doc``."""
+    lines = inspect.cleandoc(doc or '').splitlines()
+    names, inside = set(), False
+    for i, line in enumerate(lines):
+        if line.strip() == 'Parameters' and i + 1 < len(lines) and \
+                set(lines[i + 1].strip()) == {'-'}:
+            inside = True
+            continue
+        if inside:
+            if i + 1 < len(lines) and lines[i + 1].strip() and \
+                    set(lines[i + 1].strip()) == {'-'}:
+                break                               # the next section starts
+            m = re.match(r'^(\*{0,2}[A-Za-z_][\w, *]*?)\s*:', line)
+            if m and not line.startswith(' '):
+                names.update(n.strip() for n in m.group(1).split(','))
+            elif re.match(r'^\*\*\w+\s*$', line):
+                names.add(line.strip())
+    return names
+
+
+def signature_arguments(fn):
+    """Return the argument names of ``fn`` as a docstring lists them (``**kw`` for kwargs)."""
+    out = []
+    for p in inspect.signature(fn).parameters.values():
+        if p.name in ('self', 'cls'):
+            continue
+        if p.kind is p.VAR_KEYWORD:
+            out.append('**' + p.name)
+        elif p.kind is p.VAR_POSITIONAL:
+            out.append('*' + p.name)
+        else:
+            out.append(p.name)
+    return out
+
+
+def public_callables():
+    """Yield (label, function, docstring holding its Parameters) of the public API."""
+    for obj in API:
+        if inspect.isclass(obj):
+            if '__init__' in vars(obj):
+                yield obj.__name__, obj.__init__, obj.__doc__ or ''
+            for name, member in vars(obj).items():
+                if name.startswith('_') or not inspect.isfunction(member):
+                    continue
+                yield f'{obj.__name__}.{name}', member, member.__doc__
+        else:
+            yield obj.__name__, obj, obj.__doc__
+
+
+CASES = list(public_callables())
+
+
+@pytest.mark.parametrize('label,fn,doc', CASES, ids=[c[0] for c in CASES])
+def test_every_argument_is_documented(label, fn, doc):
+    args = signature_arguments(fn)
+    assert doc, f'{label} has no docstring'
+    if not args:
+        return
+    missing = [a for a in args if a not in documented_parameters(doc)]
+    assert not missing, f'{label}: arguments {missing} missing from its Parameters section'
+
+
+def test_the_checker_finds_an_undocumented_argument():
+    def documented(a, b=1, **kw):
+        """
+        Do nothing.
+
+        Parameters
+        ----------
+        a : float
+            A length [m].
+        **kw
+            Anything.
+        """
+    assert documented_parameters(documented.__doc__) == {'a', '**kw'}
+    assert 'b' not in documented_parameters(documented.__doc__)
+    assert signature_arguments(documented) == ['a', 'b', '**kw']
+
+
+@pytest.mark.parametrize('schema', [core.ScrewParams, RunSettings])
+def test_every_field_has_a_unit_and_a_description(schema):
+    for name, (_typ, _default, md) in schema.field_info().items():
+        assert md['unit'], f'{schema.__name__}.{name} has no unit'
+        assert len(md['description']) > 10, f'{schema.__name__}.{name} has no description'
