@@ -13,6 +13,9 @@ The dependencies of one file are visited in sorted order (rosbag2 keeps them
 in a ``std::set<std::string>``), not in the order of their first appearance.
 ``wstring`` counts as a primitive here (rosbag2's list omits it and would
 fall back to IDL). Only ``.msg`` files are read; nothing here imports rclpy.
+Types of packages without an installed share directory (tf2_msgs: no PyPI
+wheel) take their own text from :data:`EMBEDDED` and their hash from
+:data:`EMBEDDED_HASHES`; their dependencies are read as usual.
 """
 import functools
 import json
@@ -28,6 +31,18 @@ PRIMITIVE_TYPES = frozenset((
     'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring'))
 
 DELIMITER = '=' * 80 + '\n'
+
+#: Own ``.msg`` texts (verbatim) of types not installed here, consulted before the
+#: share directory; keys ``'pkg/msg/Type'``.
+EMBEDDED = {
+    'tf2_msgs/msg/TFMessage': 'geometry_msgs/TransformStamped[] transforms\n',
+}
+#: RIHS01 type hashes of the :data:`EMBEDDED` types, computed with rosidl's algorithm
+#: (``leadscrew_sim.io.tf.tfmessage_type_hash`` recomputes the TFMessage one).
+EMBEDDED_HASHES = {
+    'tf2_msgs/msg/TFMessage':
+        'RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087',
+}
 
 _NAME = r'[A-Za-z][A-Za-z0-9_]*'
 _TYPE_RE = re.compile(rf'^({_NAME})/(?:msg/)?({_NAME})$')
@@ -68,6 +83,9 @@ def share_directory(package):
 @functools.lru_cache(maxsize=None)
 def msg_text(msg_type):
     """Return the verbatim text of the installed ``.msg`` file of ``msg_type``."""
+    embedded = EMBEDDED.get(full_type_name(msg_type))
+    if embedded is not None:
+        return embedded
     package, name = split_type(msg_type)
     path = os.path.join(share_directory(package), 'msg', name + '.msg')
     try:
@@ -129,8 +147,12 @@ def type_hash(msg_type):
     """
     Return the ROS 2 type hash (``'RIHS01_...'``) of ``msg_type``, or ``''``.
 
-    Read from the ``.json`` type description installed next to the ``.msg``.
+    Read from the ``.json`` type description installed next to the ``.msg``
+    (:data:`EMBEDDED_HASHES` first).
     """
+    embedded = EMBEDDED_HASHES.get(full_type_name(msg_type))
+    if embedded is not None:
+        return embedded
     package, name = split_type(msg_type)
     path = os.path.join(share_directory(package), 'msg', name + '.json')
     try:
