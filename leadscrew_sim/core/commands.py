@@ -39,6 +39,7 @@ class CommandHold:
         ``<joint_prefix>screw_joint``.
     timeout : float
         Command timeout [s]; 0 disables it.
+
     """
 
     def __init__(self, joint_prefix='', timeout=0.0):
@@ -67,6 +68,7 @@ class CommandHold:
             Motor torque [N m], theta sense.
         time_ns : int
             Time of the command [ns], the base of its age.
+
         """
         if not math.isfinite(value):
             return f'non-finite torque_command {value!r}'
@@ -90,6 +92,7 @@ class CommandHold:
             The message's efforts [N m for the screw joint].
         time_ns : int
             Time of the command [ns].
+
         """
         joint = self.screw_joint
         count = list(names).count(joint)
@@ -114,6 +117,7 @@ class CommandHold:
         ----------
         value : float
             Axial force on the nut along +x [N].
+
         """
         # A finite but huge force (1e308 N) would drive the state to Inf and stop
         # the integration: refuse what the parameter range refuses.
@@ -133,6 +137,7 @@ class CommandHold:
         ----------
         now_ns : int
             The current time [ns], in the time base of the commands.
+
         """
         if self.cmd_time is not None and self.timeout > 0.0 and (
                 now_ns - self.cmd_time) > self.timeout * NS:

@@ -42,6 +42,7 @@ def field(default, unit, desc, lo=None, hi=None, lo_open=False, choices=None,
         The allowed values of a string field.
     read_only : bool
         The value cannot change while a node runs.
+
     """
     return dataclasses.field(default=default, metadata=dict(
         unit=unit, description=desc, lo=lo, hi=hi, lo_open=lo_open,
@@ -134,6 +135,7 @@ def document(cls):
     ----------
     cls : type
         A dataclass of :func:`field` fields; returned with its docstring extended.
+
     """
     lines = ['', 'Parameters', '----------']
     for f in dataclasses.fields(cls):

@@ -163,6 +163,7 @@ class LeadScrewModel:
     ------
     ParameterError
         If the stiffest mode needs more than ``MAX_SUBSTEPS_PER_STEP`` substeps.
+
     """
 
     def __init__(self, params=None, dt=1e-3):
@@ -194,6 +195,7 @@ class LeadScrewModel:
         ------
         ParameterError
             If the new set needs more substeps than allowed (nothing changes).
+
         """
         new_h = auto_substep(params)
         old = (self.params, self._P, self.substep, self.nsub)
@@ -212,6 +214,7 @@ class LeadScrewModel:
         ----------
         dt : float
             Step [s], positive and finite.
+
         """
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ParameterError('dt', f'{dt!r} s must be a positive finite step')
@@ -266,6 +269,7 @@ class LeadScrewModel:
             If an input is not finite (it never reaches the integrator).
         SimulationFault
             If the state became non-finite (the state is the one before the step).
+
         """
         self.advance(torque, dt, external_force)
         return self.output()
@@ -282,6 +286,7 @@ class LeadScrewModel:
             Step [s]; default the model's ``dt``.
         external_force : float
             Axial force on the nut along +x [N].
+
         """
         if not (math.isfinite(torque) and math.isfinite(external_force)):
             raise ValueError(f'non-finite input: torque={torque!r} N m, '
@@ -323,6 +328,7 @@ class LeadScrewModel:
             If an input is not finite or the lengths differ (before anything runs).
         SimulationFault
             If the state became non-finite.
+
         """
         tq = np.ascontiguousarray(torques, dtype=float)
         fe = (np.zeros_like(tq) if external_forces is None

@@ -1,6 +1,4 @@
-"""
-Presets: the parameter files shipped in ``config/``, found in the source tree or an install.
-"""
+"""Presets: the parameter files shipped in ``config/``, found in the source tree or an install."""
 import os
 from pathlib import Path
 import sys
@@ -43,6 +41,7 @@ def preset_path(name):
     ----------
     name : str
         Preset name, the file name in ``config/`` without ``.yaml``.
+
     """
     for d in config_dirs():
         p = d / f'{name}.yaml'
@@ -61,6 +60,7 @@ def read_parameter_file(path):
     path : str or pathlib.Path
         The file; its first key holding ``ros__parameters`` counts
         (``/**``, a node name or a namespaced node name).
+
     """
     with open(path) as fh:
         doc = yamlio.load(fh) or {}
@@ -78,6 +78,7 @@ def physics_subset(values):
     ----------
     values : dict
         Parameter name -> value.
+
     """
     names = set(ScrewParams.names())
     phys = {k: v for k, v in values.items() if k in names}
@@ -100,6 +101,7 @@ def load_preset(name, **overrides):
     -------
     ScrewParams
         The validated parameter set.
+
     """
     path = Path(name) if str(name).endswith(('.yaml', '.yml')) else preset_path(name)
     phys, _ = physics_subset(read_parameter_file(path))

@@ -59,7 +59,7 @@ class CdrWriter:
         return off
 
     def string(self, s):
-        """Append a string (length with the NUL, UTF-8 bytes, NUL)."""
+        """Append a UTF-8 string: its length with the NUL, the bytes, the NUL."""
         raw = s.encode('utf-8') + b'\x00'
         self.u32(len(raw))
         self.buf += raw

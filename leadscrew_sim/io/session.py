@@ -40,7 +40,6 @@ except Exception:  # noqa: B902 - package metadata is optional (source checkout)
 ROSBAG2_METADATA_VERSION = 9
 ROSBAG2_METADATA_NAME = 'rosbag2'
 DURATION_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-from ..core.settings import PREFIX_RE  # noqa: E402 - one rule for the node and the session
 
 _QOS_CHOICES = {
     'history': ('keep_last', 'keep_all', 'system_default', 'unknown'),
