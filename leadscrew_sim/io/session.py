@@ -17,7 +17,6 @@ read back by :func:`recover`. Times are in nanoseconds, sizes in bytes.
 """
 import math
 import os
-import re
 import threading
 import time
 from pathlib import Path
