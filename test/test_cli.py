@@ -13,7 +13,7 @@ import sys
 import threading
 import time
 
-from leadscrew_sim.io import cdr as C, messages as M, topics as T
+from leadscrew_sim.io import cdr as C, messages as M
 from leadscrew_sim.io.msgdefs import cdr_length
 import pytest
 

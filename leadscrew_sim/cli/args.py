@@ -1,0 +1,148 @@
+"""Shared pieces of the verbs: errors, the parser class, ``--set``, parameter loading, progress."""
+import argparse
+import math
+from pathlib import Path
+import sys
+import time
+
+from ..core import yamlio
+from ..core.params import ParameterError, ScrewParams
+from ..core.presets import load_preset, physics_subset, read_parameter_file
+
+PROG = 'leadscrew_sim'
+NS = 1_000_000_000
+DEFAULT_PRESET = 'tr12x3'
+
+
+class CliError(Exception):
+    """A user-facing error: printed as one line, exit status 1."""
+
+
+class UsageError(CliError):
+    """A command-line usage error (exit status 2)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (no usage dump)."""
+
+    def error(self, message):
+        """Raise UsageError instead of printing the usage and exiting."""
+        raise UsageError(message)
+
+
+def parse_scalar(text):
+    """Parse a --set value as a YAML scalar; '1e-4' counts as a number."""
+    try:
+        value = yamlio.load(text)
+    except yamlio.YAMLError:
+        value = text
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            pass
+    return value
+
+
+def parse_sets(items):
+    """Return (physics overrides, run-setting overrides) from ``name=value`` strings."""
+    names = ScrewParams.names()
+    phys, run = {}, {}
+    for item in items or ():
+        name, sep, text = item.partition('=')
+        name = name.strip()
+        if not sep or not name:
+            raise CliError(f'--set {item!r}: expected name=value')
+        value = parse_scalar(text)
+        if name in names:
+            phys[name] = value
+        elif name == 'joint_prefix':
+            run[name] = '' if value is None else str(text)
+        else:
+            raise CliError(f"--set: unknown parameter '{name}' (physics parameters: "
+                           f"{', '.join(sorted(names))}; or joint_prefix)")
+    return phys, run
+
+
+def check_finite(name, value):
+    """Raise CliError unless option ``name`` has a finite ``value``."""
+    if not math.isfinite(value):
+        raise CliError(f'{name} {value!r} is not a finite number')
+
+
+def load_params(args, phys_overrides):
+    """Return (ScrewParams, preset label, extra settings from a --params file)."""
+    if args.params and args.preset:
+        raise CliError('give --preset or --params, not both')
+    extra = {}
+    if args.params:
+        try:
+            values = read_parameter_file(args.params)
+        except OSError as exc:
+            raise CliError(f'--params {args.params}: {exc.strerror or exc}') from None
+        except ParameterError:
+            raise CliError(f'--params {args.params}: no "<node>: ros__parameters:" '
+                           'section') from None
+        except Exception as exc:  # noqa: B902 - YAML syntax errors of many kinds
+            raise CliError(f'--params {args.params}: cannot parse YAML: '
+                           f'{str(exc).splitlines()[0]}') from None
+        phys, other = physics_subset(values)
+        preset = other.get('preset')
+        base = load_preset(preset) if isinstance(preset, str) else ScrewParams()
+        params = ScrewParams.from_dict(phys, base=base)
+        extra = {k: other[k] for k in ('update_rate', 'joint_prefix') if k in other}
+        label = Path(args.params).stem
+    else:
+        label = args.preset or DEFAULT_PRESET
+        params = load_preset(label)
+    if phys_overrides:
+        params = ScrewParams.from_dict(phys_overrides, base=params)
+    return params, label, extra
+
+
+class Progress:
+    """
+    A progress bar on stderr, shown only once a run has taken ``delay`` s of wall time.
+
+    Parameters
+    ----------
+    total : int
+        Number of steps of the run.
+    label : str
+        Text before the bar.
+    quiet : bool
+        Never show the bar.
+    delay : float
+        Wall time [s] before the bar appears.
+
+    """
+
+    def __init__(self, total, label, quiet=False, delay=2.0):
+        """Start the clock."""
+        self.total = max(1, total)
+        self.label = label
+        self.quiet = quiet or not total
+        self.t0 = time.monotonic()
+        self.delay = delay
+        self.next = self.t0 + delay
+        self.shown = False
+
+    def update(self, done):
+        """Redraw with ``done`` steps done, at most 4 times a second."""
+        now = time.monotonic()
+        if self.quiet or now < self.next:
+            return
+        self.next = now + 0.25
+        self.shown = True
+        frac = done / self.total
+        bar = '#' * int(30 * frac)
+        rate = done / (now - self.t0)
+        eta = (self.total - done) / rate if rate > 0 else 0.0
+        sys.stderr.write(f'\r{self.label} [{bar:<30}] {100 * frac:5.1f}% ETA {eta:5.1f} s ')
+        sys.stderr.flush()
+
+    def done(self):
+        """Clear the bar."""
+        if self.shown:
+            sys.stderr.write('\r' + ' ' * 70 + '\r')
+            sys.stderr.flush()

@@ -1,0 +1,102 @@
+"""``info`` (``summary``): one screen about a recording (any ros2-profile MCAP)."""
+import os
+
+from .args import NS, Progress
+from .resim import Resim
+from ..io import cdr as C
+from ..io.mcap_reader import Recording
+from ..io.run_file import PARAMS_RECORD
+
+HELP = 'one screen about a recording'
+
+
+def add_arguments(p):
+    """Add the options of ``info`` to parser ``p``."""
+    p.add_argument('file')
+    p.add_argument('--no-resim', action='store_true',
+                   help='skip the re-simulation (stick fraction, energy)')
+    p.add_argument('--quiet', '-q', action='store_true')
+
+
+def run(args):
+    """Print one screen about a recording; return the exit status."""
+    rec = Recording(args.file)
+    rec.require_ros2()
+    _print_channels(args, rec)
+    meta = rec.record(PARAMS_RECORD)
+    if meta is None:
+        print('(not a leadscrew_sim recording: generic counts only)')
+        return 0
+    print(f'leadscrew_sim run: preset {meta.get("preset", "?")}, '
+          f'{meta.get("update_rate", "?")} Hz, clock_mode {meta.get("clock_mode", "?")}')
+    _print_states(rec)
+    timing = {}
+    for _name, data in rec.metadata:
+        for key in ('overruns', 'late_ticks', 'skipped_steps', 'catchup_steps'):
+            if key in data:
+                timing[key] = data[key]
+    print('timing: ' + (', '.join(f'{k} {v}' for k, v in timing.items()) if timing else
+                        'no overrun/late-tick counts in the metadata'))
+    if not args.no_resim:
+        _print_resim(args, rec)
+    return 0
+
+
+def _print_channels(args, rec):
+    """Print the file, its duration and the message count and rate [Hz] of each channel."""
+    st = rec.summary.statistics
+    size = os.path.getsize(args.file)
+    counts = dict(st.channel_message_counts) if st else {}
+    t_first = st.message_start_time if st and st.message_count else 0
+    t_last = st.message_end_time if st and st.message_count else 0
+    print(f'file:      {args.file} ({size} B), profile {rec.profile!r}, '
+          f'library {rec.header.library!r}')
+    print(f'duration:  {(t_last - t_first) / NS:.6f} s (log time {t_first / NS:.6f} .. '
+          f'{t_last / NS:.6f} s), {st.message_count if st else 0} messages')
+    print(f'{"topic":<28} {"type":<34} {"count":>8} {"rate Hz":>9}')
+    span = (t_last - t_first) / NS
+    for cid, ch in sorted(rec.channels.items(), key=lambda c: c[1].topic):
+        n = counts.get(cid, 0)
+        rate = f'{(n - 1) / span:.1f}' if n > 1 and span > 0 else '-'
+        print(f'{ch.topic:<28} {rec.topic_types.get(ch.topic, ""):<34} {n:>8} {rate:>9}')
+
+
+def _print_states(rec):
+    """Print the range of the nut position [m] and the largest velocities and torque."""
+    js_topic = rec.role_topic('joint_states')
+    xs, vs, ws, tqs = [], [], [], []
+    for _t, topic, data in rec.messages:
+        if topic == js_topic:
+            _s, _names, pos, vel, eff = C.decode_joint_state(data)
+            if len(pos) >= 2:
+                xs.append(pos[1])
+            if len(vel) >= 2:
+                vs.append(abs(vel[1]))
+                ws.append(abs(vel[0]))
+            if eff:
+                tqs.append(abs(eff[0]))
+    if xs:
+        print(f'nut position: min {min(xs):.6g} m, max {max(xs):.6g} m, '
+              f'final {xs[-1]:.6g} m')
+    if vs:
+        print(f'max |velocity|: nut {max(vs):.6g} m/s, screw {max(ws):.6g} rad/s')
+    if tqs:
+        print(f'max |motor torque|: {max(tqs):.6g} N m')
+
+
+def _print_resim(args, rec):
+    """Print the stick and contact fractions and the energy balance [J] of a re-simulation."""
+    sim = Resim(rec)
+    _new, outs, model = sim.run(keep=True, progress=Progress(sim.n_steps, 'info', args.quiet))
+    if not outs:
+        return
+    stick = sum(1 for o in outs if o.stuck) / len(outs)
+    side = {name: sum(1 for o in outs if o.contact == c) / len(outs)
+            for c, name in ((1, 'leading'), (-1, 'trailing'), (0, 'backlash'))}
+    e = model.energy()
+    print(f'(re-simulated from the recorded parameters and commands) thread stuck '
+          f'{100 * stick:.1f}% of steps; contact ' +
+          ', '.join(f'{k} {100 * v:.1f}%' for k, v in side.items()))
+    print(f'energy: input work {e["input_work"]:.6g} J, friction dissipated '
+          f'{e["friction_dissipation"]:.6g} J, damping dissipated '
+          f'{e["damping_dissipation"]:.6g} J (balance residual {e["residual"]:.3g} J)')

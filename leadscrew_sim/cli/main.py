@@ -1,0 +1,59 @@
+"""
+The command line ``leadscrew_sim``: the parser of all verbs and the one-line error handling.
+
+Every error prints one line ``leadscrew_sim: error: ...`` on stderr and exits
+with status 1 (2 for command-line usage errors); set ``LEADSCREW_SIM_DEBUG=1``
+for tracebacks.
+"""
+import os
+import sys
+
+from . import info, play, plot, resim, simulate
+from .args import CliError, Parser, PROG, UsageError
+from ..core.params import ParameterError
+from ..io.mcap_reader import RecordingError
+from ..io.run_file import RunFileError
+
+#: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
+VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
+         ('play', play), ('plot', plot))
+
+
+def build_parser():
+    """Return the argument parser of all verbs."""
+    parser = Parser(prog=PROG, description='Offline tools for the leadscrew_sim lead screw '
+                    'axis: simulate, info, resim, play, plot.')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    sub.required = True
+    for name, verb in VERBS:
+        p = sub.add_parser(name, help=verb.HELP)
+        verb.add_arguments(p)
+        p.set_defaults(func=verb.run)
+    return parser
+
+
+def main(argv=None):
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+    except UsageError as exc:
+        print(f'{PROG}: error: {exc} (see {PROG} --help)', file=sys.stderr)
+        return 2
+    except (CliError, ParameterError, RecordingError, RunFileError) as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f'{PROG}: error: interrupted', file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: B902 - never a traceback for the user
+        if os.environ.get('LEADSCREW_SIM_DEBUG'):
+            raise
+        msg = ' '.join(str(exc).split())
+        print(f'{PROG}: error: {exc.__class__.__name__}: {msg}', file=sys.stderr)
+        return 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,109 @@
+"""``plot``: one PNG with four panels of a leadscrew_sim recording (forces re-simulated)."""
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .args import CliError, NS, Progress
+from .resim import Resim
+from ..io.mcap_reader import Recording
+
+HELP = 'four-panel PNG of a leadscrew_sim recording'
+
+#: StepOutput fields the panels show.
+COLUMNS = ('nut_position', 'nut_velocity', 'screw_angle', 'motor_torque', 'normal_leading',
+           'normal_trailing', 'friction_force', 'contact', 'stuck')
+
+
+def add_arguments(p):
+    """Add the options of ``plot`` to parser ``p``."""
+    p.add_argument('file')
+    p.add_argument('--output', '-o', help='PNG path (default <stem>.png)')
+    p.add_argument('--width', type=int, default=1200, help='pixels')
+    p.add_argument('--height', type=int, default=900, help='pixels')
+    p.add_argument('--dpi', type=int, default=100)
+    p.add_argument('--quiet', '-q', action='store_true')
+
+
+def run(args):
+    """Write one PNG with four panels (forces re-simulated from the file)."""
+    rec = Recording(args.file)
+    sim = Resim(rec)
+    _new, outs, _model = sim.run(keep=True, progress=Progress(sim.n_steps, 'plot', args.quiet))
+    if not outs:
+        raise CliError(f'{args.file}: no steps to plot')
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    t = (sim.t0 + sim.dt_ns * np.arange(1, len(outs) + 1)) / NS
+    col = {name: np.array([getattr(o, name) for o in outs], dtype=float) for name in COLUMNS}
+    w_in, h_in = args.width / args.dpi, args.height / args.dpi
+    fig, axs = plt.subplots(2, 2, figsize=(w_in, h_in), dpi=args.dpi)
+    fig.suptitle(f'{Path(args.file).name}: preset {sim.meta.get("preset", "?")}, '
+                 f'{NS / sim.dt_ns:g} Hz', fontsize=10)
+    _motion_panel(axs[0, 0], t, col)
+    _force_panel(axs[0, 1], t, col)
+    _backlash_panel(axs[1, 0], col, sim.params)
+    ax = axs[1, 1]
+    ax.plot(col['nut_position'] * 1e3, col['nut_velocity'] * 1e3, 'C0', lw=0.6)
+    ax.set_xlabel('nut position [mm]')
+    ax.set_ylabel('nut velocity [mm/s]')
+    ax.set_title('phase portrait', fontsize=9)
+    for a in axs.flat:
+        a.grid(True, lw=0.3)
+    fig.tight_layout()
+    src = Path(args.file)
+    out = args.output or str(src.with_suffix('.png'))
+    try:
+        fig.savefig(out, dpi=args.dpi)
+    except OSError as exc:
+        raise CliError(f'cannot write {out}: {exc.strerror or exc}') from None
+    plt.close(fig)
+    print(f'wrote {out} ({args.width}x{args.height} px; forces and contact re-simulated '
+          'from the recorded parameters and commands)')
+    return 0
+
+
+def _motion_panel(ax, t, col):
+    """Nut position [mm], nut velocity [mm/s] and motor torque [mN m] over time [s]."""
+    ax.plot(t, col['nut_position'] * 1e3, 'C0', lw=1, label='nut position [mm]')
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('nut position [mm]', color='C0')
+    ax2 = ax.twinx()
+    ax2.plot(t, col['nut_velocity'] * 1e3, 'C1', lw=0.8, label='nut velocity [mm/s]')
+    ax2.plot(t, col['motor_torque'] * 1e3, 'C2', lw=0.8, label='motor torque [mN m]')
+    ax2.set_ylabel('velocity [mm/s], torque [mN m]')
+    lines = ax.get_lines() + ax2.get_lines()
+    ax.legend(lines, [ln.get_label() for ln in lines], fontsize=7, loc='best')
+    ax.set_title('position, velocity, torque', fontsize=9)
+
+
+def _force_panel(ax, t, col):
+    """Thread normal and friction forces [N] over time [s], stick and contact side shaded."""
+    stuck = col['stuck'] > 0.5
+    ax.fill_between(t, 0, 1, where=stuck, color='0.85', step='post',
+                    transform=ax.get_xaxis_transform(), label='stick')
+    for c, name, color in ((1, 'leading flank', 'C3'), (-1, 'trailing flank', 'C4'),
+                           (0, 'in backlash', 'C7')):
+        ax.fill_between(t, 0.96, 1.0, where=col['contact'] == c, color=color, step='post',
+                        transform=ax.get_xaxis_transform(), label=f'contact: {name}')
+    ax.plot(t, col['normal_leading'], 'C3', lw=0.8, label='normal force, leading [N]')
+    ax.plot(t, col['normal_trailing'], 'C4', lw=0.8, label='normal force, trailing [N]')
+    ax.plot(t, col['friction_force'], 'k', lw=0.8, label='friction force [N]')
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('force [N]')
+    ax.legend(fontsize=7, loc='best')
+    ax.set_title('thread forces (re-simulated), stick shaded, contact side on top', fontsize=9)
+
+
+def _backlash_panel(ax, col, p):
+    """Nut position minus its nominal x(theta) [um] over the screw angle [rad]."""
+    rt = p.lead / (2.0 * math.pi)
+    dev = col['nut_position'] - rt * p.hand_sign * col['screw_angle']
+    ax.plot(col['screw_angle'], dev * 1e6, 'C0', lw=0.8)
+    ax.axhline(0.5 * p.backlash * 1e6, color='0.5', ls='--', lw=0.8)
+    ax.axhline(-0.5 * p.backlash * 1e6, color='0.5', ls='--', lw=0.8)
+    ax.set_xlabel('screw angle [rad]')
+    ax.set_ylabel('x - x_nominal(theta) [um]')
+    ax.set_title(f'backlash hysteresis (dashed: +-b/2, b = {p.backlash * 1e6:g} um)',
+                 fontsize=9)

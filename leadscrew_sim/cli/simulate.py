@@ -1,0 +1,206 @@
+"""
+``simulate``: run the model without ROS and write an MCAP file in the node's recording layout.
+
+Per tick k at t_k = k dt the file holds torque_command (and external_force
+when it changes) logged at t_k, then the states logged at t_k + dt: the
+node's rule (:data:`leadscrew_sim.core.commands.COMMAND_LOG_TIME`), so
+``resim`` feeds the model the very same doubles and reproduces the states
+bit for bit.
+"""
+import math
+import sys
+import time
+
+import numpy as np
+
+from .args import CliError, DEFAULT_PRESET, load_params, NS, parse_sets, Progress
+from .sources import make_force_source, make_torque_source
+from ..io import cdr as C
+from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter
+
+HELP = 'run the model offline and write an MCAP file'
+
+#: Ticks per block: the model runs a block in one compiled call (open-loop
+#: inputs) and the block's messages are encoded and recorded at once.
+BLOCK_TICKS = 1000
+
+#: The state columns of a block, named as in the result of ``model.run``.
+COLUMNS = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity', 'motor_torque',
+           'axial_force', 'thread_torque')
+
+
+def add_arguments(p):
+    """Add the options of ``simulate`` to parser ``p``."""
+    p.add_argument('--preset', help=f'preset name (default {DEFAULT_PRESET})')
+    p.add_argument('--params', help='ROS 2 parameter file (<node>: ros__parameters:)')
+    p.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='override a physics parameter (repeatable; YAML scalar)')
+    p.add_argument('--duration', type=float, default=1.0, help='simulated time [s]')
+    p.add_argument('--rate', type=float, help='update rate [Hz], dt = 1/rate (default 1000)')
+    p.add_argument('--torque', type=float, help='constant motor torque [N m]')
+    p.add_argument('--torque-csv', help='CSV time,torque [s, N m], zero-order hold')
+    p.add_argument('--profile', choices=('step', 'ramp', 'sine', 'move'),
+                   help='torque profile (move: PD position control to --target)')
+    p.add_argument('--amplitude', type=float, help='profile torque amplitude [N m] '
+                   '(default max_torque/2)')
+    p.add_argument('--frequency', type=float, default=1.0, help='sine frequency [Hz]')
+    p.add_argument('--step-time', type=float, default=0.1, help='step profile time [s]')
+    p.add_argument('--target', type=float, help='move target nut position [m] '
+                   '(default initial + 10 mm)')
+    p.add_argument('--speed', type=float, default=0.01, help='move reference speed [m/s]')
+    p.add_argument('--force', type=float, help='constant external axial force [N]')
+    p.add_argument('--force-csv', help='CSV time,force [s, N], zero-order hold')
+    p.add_argument('--clock', action='store_true', help='also record /clock every tick')
+    p.add_argument('--output', '-o', help='output MCAP (default runs/sim_<preset>_<time>.mcap)')
+    p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
+
+
+def run(args):
+    """Run the model offline and record it in the node's layout; return the exit status."""
+    from ..core.model import LeadScrewModel
+    phys_ov, run_ov = parse_sets(args.set)
+    params, label, extra = load_params(args, phys_ov)
+    rate = args.rate if args.rate is not None else float(extra.get('update_rate', 1000.0))
+    if not (math.isfinite(rate) and 1.0 <= rate <= 1e6):
+        raise CliError(f'--rate {rate} Hz must lie in [1, 1e6]')
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise CliError(f'--duration {args.duration} s must be > 0')
+    prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))
+    dt_ns = int(round(NS / rate))
+    n_steps = int(round(args.duration * NS / dt_ns))
+    torque_fn, torque_desc = make_torque_source(args, params)
+    force_fn, force_desc = make_force_source(args)
+    model = LeadScrewModel(params, dt=dt_ns / NS)
+    out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
+    w = RunWriter(out, prefix, clock=args.clock)
+    w.rec.add_metadata(PARAMS_RECORD, parameters_record(
+        params, label, rate, dt_ns, {'joint_prefix': prefix} if prefix else None))
+    w.rec.add_metadata(CLI_RECORD, {
+        'command': 'simulate', 'argv': ' '.join(sys.argv[1:]), 'torque_input': torque_desc,
+        'force_input': force_desc, 'steps': str(n_steps)})
+    t_wall = time.perf_counter()
+    try:
+        stats = simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w,
+                              Progress(n_steps, 'simulate', args.quiet), args.clock)
+    finally:
+        size = w.close()
+    wall = time.perf_counter() - t_wall
+    sim_s = n_steps * dt_ns / NS
+    print(f'wrote {out}: {sim_s:g} s simulated at {rate:g} Hz ({n_steps} steps, '
+          f'{model.nsub} substeps/step) in {wall:.2f} s wall ({sim_s / wall:.1f}x real time), '
+          f'{size} B')
+    print(f'nut position {stats["x_min"]:.6g} .. {stats["x_max"]:.6g} m, final '
+          f'{stats["x_end"]:.6g} m; max |torque| {stats["tq_max"]:.4g} N m')
+    return 0
+
+
+def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock=False):
+    """
+    Advance ``n_steps`` steps of ``dt_ns`` [ns], recording command and states per tick.
+
+    Blocks of :data:`BLOCK_TICKS` ticks: open-loop torque inputs (functions of
+    time only) run through ``model.run`` in one compiled call, the closed-loop
+    ``move`` profile tick by tick; both give the same bits as ``model.advance``
+    per tick. Returns the statistics x_min, x_max, x_end [m] and tq_max [N m].
+    """
+    dt = dt_ns / NS
+    needs_state = getattr(torque_fn, 'needs_state', False)
+    o = model.output()
+    x, vm = o.nut_position, 0.0
+    vm_scale = model.params.hand_sign * model.params.lead / (2.0 * math.pi)
+    stats = dict(x_min=x, x_max=x, x_end=x, tq_max=0.0)
+    force = 0.0
+    for k0 in range(0, n_steps, BLOCK_TICKS):
+        ks = range(k0, min(n_steps, k0 + BLOCK_TICKS))
+        forces, changes = [], []
+        for k in ks:
+            f = force if force_fn is None else float(force_fn(k * dt))
+            if force_fn is not None and (f != force or k == 0):
+                changes.append(k)
+            forces.append(f)
+            force = f
+        if needs_state:
+            torques, cols = _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm,
+                                               vm_scale)
+        else:
+            torques, cols = _open_loop_block(model, ks, dt, torque_fn, forces)
+        x = float(cols[1][-1])
+        vm = vm_scale * model.output().motor_velocity
+        _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock)
+        stats['x_min'] = min(stats['x_min'], float(np.min(cols[1])))
+        stats['x_max'] = max(stats['x_max'], float(np.max(cols[1])))
+        stats['tq_max'] = max(stats['tq_max'], float(np.max(np.abs(cols[4]))))
+        stats['x_end'] = x
+        progress.update(ks.stop)
+    progress.done()
+    return stats
+
+
+def _check_finite(torques, ks, dt):
+    bad = np.flatnonzero(~np.isfinite(np.asarray(torques, dtype=float)))
+    if len(bad):
+        raise CliError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
+
+
+def _open_loop_block(model, ks, dt, torque_fn, forces):
+    """Run a block in one compiled call; return torques and the :data:`COLUMNS`."""
+    torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
+    _check_finite(torques, ks, dt)
+    try:
+        r = model.run(torques, forces)
+    except FloatingPointError as exc:
+        raise CliError(f'simulation fault: {exc}') from None
+    return torques, [r[n] for n in COLUMNS]
+
+
+def _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm, vm_scale):
+    """Step tick by tick (the torque depends on the state); return torques and columns."""
+    n = len(ks)
+    cols = [np.empty(n) for _ in range(7)]
+    torques = []
+    for i, k in enumerate(ks):
+        tq = float(torque_fn(k, k * dt, x, vm))
+        _check_finite([tq], [k], dt)
+        torques.append(tq)
+        try:
+            model.advance(tq, None, forces[i])
+        except FloatingPointError as exc:
+            raise CliError(f'simulation fault: {exc}') from None
+        o = model.output()
+        x, vm = o.nut_position, vm_scale * o.motor_velocity
+        for col, v in zip(cols, (o.screw_angle, x, o.screw_velocity, o.nut_velocity,
+                                 o.motor_torque, o.axial_force, o.thread_torque)):
+            col[i] = v
+    return torques, cols
+
+
+def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
+    """Encode and write the messages of one block in the node's per-tick order."""
+    enc, ids = w.enc, w.ids
+    t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+    t_state = t_cmd + dt_ns
+    angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = cols
+    rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
+            enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor, f_ax]),
+            enc.nut_position.rows(None, [x]),
+            enc.thread_force.rows(t_state, [f_ax, tq_thread])]
+    times = [t_cmd, t_state, t_state, t_state]
+    chans = [ids['torque_command'], ids['joint_states'], ids['nut_position'],
+             ids['thread_force']]
+    if clock:
+        rows.append(enc.clock.rows(t_state, []))
+        times.append(t_state)
+        chans.append(ids['/clock'])
+    a = 0
+    for c in changes + [ks.stop]:
+        i = c - ks.start
+        if i > a:
+            w.rec.write_rows(chans, [r[a:i] for r in rows], [t[a:i] for t in times])
+        if c == ks.stop:
+            break
+        # a force change: torque, force, then the states of that tick
+        w.write(chans[0], rows[0][i].tobytes(), int(t_cmd[i]))
+        w.write(ids['external_force'], C.encode_float64(forces[i]), int(t_cmd[i]))
+        w.rec.write_rows(chans[1:], [r[i:i + 1] for r in rows[1:]],
+                         [t[i:i + 1] for t in times[1:]])
+        a = i + 1

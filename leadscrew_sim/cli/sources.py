@@ -1,0 +1,210 @@
+"""The inputs of ``simulate``: motor torque and external force sources, CSV series."""
+import bisect
+import math
+
+from .args import check_finite, CliError
+from ..core.commands import CommandHold
+
+
+def read_csv_series(path, what):
+    """Read ``time,value`` rows (s, SI) with an optional header; return sorted (times, values)."""
+    try:
+        fh = open(path, newline='')
+    except OSError as exc:
+        raise CliError(f'{what} CSV {path}: {exc.strerror or exc}') from None
+    times, values = [], []
+    with fh:
+        for lineno, line in enumerate(fh, 1):
+            text = line.strip()
+            if not text or text.startswith('#'):
+                continue
+            cells = [c.strip() for c in text.replace(';', ',').split(',')]
+            try:
+                if len(cells) != 2:
+                    raise ValueError
+                t, v = float(cells[0]), float(cells[1])
+            except ValueError:
+                if not times and lineno == 1 and not _numeric(cells[0]):
+                    continue                        # header line
+                raise CliError(f'{what} CSV {path}, line {lineno}: expected "time,value" '
+                               f'with two numbers, got {text[:60]!r}') from None
+            if not (math.isfinite(t) and math.isfinite(v)):
+                raise CliError(f'{what} CSV {path}, line {lineno}: non-finite number')
+            if times and t < times[-1]:
+                raise CliError(f'{what} CSV {path}, line {lineno}: time {t} s goes backwards '
+                               f'(previous {times[-1]} s)')
+            times.append(t)
+            values.append(v)
+    if not times:
+        raise CliError(f'{what} CSV {path}: no data rows')
+    return times, values
+
+
+def _numeric(text):
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+class Held:
+    """
+    Zero-order hold of a (time, value) series: value of the last row with time <= t.
+
+    Parameters
+    ----------
+    times : list of float
+        Sorted times [s].
+    values : list of float
+        Values (SI) at those times.
+    before : float
+        Value before the first row.
+
+    """
+
+    def __init__(self, times, values, before=0.0):
+        """Keep the series."""
+        self.times, self.values, self.before = times, values, before
+
+    def __call__(self, t):
+        """Return the held value at time t [s]."""
+        i = bisect.bisect_right(self.times, t + 1e-12)
+        return self.values[i - 1] if i else self.before
+
+
+class MoveController:
+    """
+    PID position control of the nut toward a target along a ramp reference (``--profile move``).
+
+    Reference: from the initial position to ``target`` at ``speed`` m/s.
+    Gains from the effective moving mass M (payload + reflected inertia) with
+    three closed-loop poles at ``-2 pi bandwidth``: kd = 3 M w, kp = 3 M w^2,
+    ki = M w^3; gravity feed-forward; the integral is clamped so its force
+    stays within the motor's max_torque (anti-windup). The model saturates the
+    torque itself.
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The physics of the axis.
+    target : float
+        Target nut position [m].
+    speed : float
+        Reference speed [m/s].
+    bandwidth : float
+        Closed-loop bandwidth [Hz].
+
+    """
+
+    def __init__(self, params, target, speed, bandwidth=3.0):
+        """Precompute the reference ramp and the gains."""
+        self.x0 = params.initial_position
+        self.target = target
+        self.speed = abs(speed)
+        self.rt = params.lead / (2.0 * math.pi)
+        mass = params.moving_mass + (params.motor_inertia + params.screw_inertia) / self.rt ** 2
+        w = 2.0 * math.pi * bandwidth
+        self.kp, self.kd, self.ki = 3.0 * mass * w * w, 3.0 * mass * w, mass * w ** 3
+        self.f_grav = params.moving_mass * params.gravity * math.sin(params.inclination)
+        self.f_max = params.max_torque / self.rt
+        self.hs = params.hand_sign
+        self.integral = 0.0
+        self.t_prev = 0.0
+
+    def reference(self, t):
+        """Return the reference position [m] at time t [s]."""
+        d = self.target - self.x0
+        travel = self.speed * t
+        return self.target if travel >= abs(d) else self.x0 + math.copysign(travel, d)
+
+    def __call__(self, t, x, v):
+        """
+        Return the motor torque [N m] for the nut position x [m].
+
+        v is the motor velocity expressed as nut velocity (h rt omega_m) [m/s]:
+        damping on the motor side is collocated with the torque, so a compliant
+        coupling does not destabilize the loop.
+        """
+        ref = self.reference(t)
+        v_ref = 0.0 if ref == self.target else math.copysign(self.speed, self.target - self.x0)
+        err = ref - x
+        lim = self.f_max / self.ki
+        self.integral = min(lim, max(-lim, self.integral + err * (t - self.t_prev)))
+        self.t_prev = t
+        force = self.kp * err + self.kd * (v_ref - v) + self.ki * self.integral + self.f_grav
+        # x = rt * q and q = h * theta: a force F along +x needs a torque h * rt * F.
+        return self.hs * self.rt * force
+
+
+def make_torque_source(args, params):
+    """
+    Return ``fn(k, t, x, v) -> torque`` and a description of the input.
+
+    x is the nut position [m], v the motor velocity as nut velocity [m/s];
+    ``fn.needs_state`` marks a closed loop (stepped tick by tick).
+    """
+    chosen = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv),
+                             ('--profile', args.profile)) if v is not None]
+    if len(chosen) > 1:
+        raise CliError(f'give only one torque input, not {" and ".join(chosen)}')
+    if args.torque_csv is not None:
+        held = Held(*read_csv_series(args.torque_csv, 'torque'))
+        return (lambda k, t, x, v: held(t)), f'torque_csv={args.torque_csv}'
+    if args.profile is None:
+        c = float(args.torque or 0.0)
+        check_finite('--torque', c)
+        return (lambda k, t, x, v: c), f'torque={c}'
+    if args.profile == 'move':
+        return _move_source(args, params)
+    amp = 0.5 * params.max_torque if args.amplitude is None else args.amplitude
+    check_finite('--amplitude', amp)
+    f = args.frequency
+    if args.profile == 'step':
+        t_step = args.step_time
+        return (lambda k, t, x, v: amp if t >= t_step else 0.0), (
+            f'profile=step amplitude={amp} step_time={t_step}')
+    if args.profile == 'ramp':
+        dur = args.duration
+        return (lambda k, t, x, v: amp * t / dur), f'profile=ramp amplitude={amp}'
+    w = 2.0 * math.pi * f
+    return (lambda k, t, x, v: amp * math.sin(w * t)), f'profile=sine amplitude={amp} f={f}'
+
+
+def _move_source(args, params):
+    """Return the closed-loop torque source of ``--profile move`` and its description."""
+    target = args.target if args.target is not None else params.initial_position + 0.01
+    if not params.stroke_min <= target <= params.stroke_max:
+        raise CliError(f'--target {target} m lies outside the stroke '
+                       f'[{params.stroke_min}, {params.stroke_max}] m')
+    ctl = MoveController(params, target, args.speed)
+
+    def fn(k, t, x, v):
+        """Return the torque [N m] at tick k, time t [s], nut position x [m], velocity v."""
+        return ctl(t, x, v)
+    fn.needs_state = True
+    return fn, f'profile=move target={target} speed={args.speed}'
+
+
+def make_force_source(args):
+    """Return ``fn(t) -> external force [N]`` (None: no force input) and a description."""
+    if args.force is not None and args.force_csv is not None:
+        raise CliError('give only one of --force and --force-csv')
+    if args.force_csv is not None:
+        times, values = read_csv_series(args.force_csv, 'force')
+        for t, v in zip(times, values):
+            _check_force(f'force CSV {args.force_csv}, t={t} s', v)
+        return Held(times, values), f'force_csv={args.force_csv}'
+    if args.force is not None:
+        check_finite('--force', args.force)
+        c = float(args.force)
+        _check_force('--force', c)
+        return (lambda t: c), f'force={c}'
+    return None, ''
+
+
+def _check_force(what, value):
+    """Raise CliError for an external force [N] the node's command rules reject."""
+    reason = CommandHold().external_force(value)
+    if reason is not None:
+        raise CliError(f'{what}: {reason}')

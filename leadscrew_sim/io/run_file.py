@@ -1,0 +1,152 @@
+"""
+A run file: an MCAP file in the node's recording layout, as ``simulate`` and ``resim`` write it.
+
+The layout: one channel per command and state topic of :mod:`.topics`
+(resolved names, the node's QoS), states encoded by :class:`.messages.StateEncoder`,
+and a parameters record holding every physics parameter and run setting as
+``str(value)`` (the node's keys), read back with :func:`params_from_record`
+and :func:`run_setting`.
+"""
+import dataclasses
+import os
+from pathlib import Path
+
+from . import messages as M, topics as T
+from ..core import fields
+from ..core.commands import COMMAND_LOG_TIME
+from ..core.params import ScrewParams
+from ..core.settings import RunSettings
+
+#: Metadata record of the parameters of a run (written at its start).
+PARAMS_RECORD = 'leadscrew_sim_parameters'
+#: Metadata record of a parameter change while the node runs.
+UPDATE_RECORD = 'leadscrew_sim_parameters_update'
+#: Metadata record of a ``~/reset`` of the node.
+RESET_RECORD = 'leadscrew_sim_reset'
+#: Metadata record of the command line that wrote the file.
+CLI_RECORD = 'leadscrew_sim_cli'
+
+#: The run settings ``simulate`` records: the node's defaults, clock mode 'simulate' and
+#: command_timeout 0 (a command comes every tick).
+SIMULATE_SETTINGS = dict(RunSettings(command_timeout=0.0).to_dict(), clock_mode='simulate')
+
+_RUN_FIELDS = {f.name: f for f in dataclasses.fields(RunSettings)}
+
+__all__ = ['CLI_RECORD', 'PARAMS_RECORD', 'RESET_RECORD', 'UPDATE_RECORD', 'RunFileError',
+           'RunWriter', 'SIMULATE_SETTINGS', 'params_from_record', 'parameters_record',
+           'run_setting']
+
+
+class RunFileError(OSError):
+    """A run file cannot be created or written; the message is one line."""
+
+
+class RunWriter:
+    """
+    An MCAP file in the node's layout: channels, parameters record, messages.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write; its directory is created.
+    joint_prefix : str
+        Prefix of the joint names in the joint_states.
+    namespace : str
+        Namespace the topics are resolved in.
+    clock : bool
+        Also register a ``/clock`` channel.
+
+    """
+
+    def __init__(self, path, joint_prefix='', namespace='/', clock=False):
+        """Open the file and register the node's channels (resolved names)."""
+        from .session import McapRecorder, qos_profile_yaml
+        self.path = str(path)
+        try:
+            Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RunFileError(f'cannot create the directory of {self.path}: {exc}') from None
+        self.rec = McapRecorder(self.path, flush_interval=1.0)
+        if self.rec.error:
+            raise RunFileError(f'cannot write {self.rec.error}')
+        self.ids = {}
+        topics = list(T.COMMAND_TOPICS) + list(T.STATE_TOPICS) + (['/clock'] if clock else [])
+        for rel in topics:
+            msg_type, _role, qos = T.TOPICS[rel]
+            # exact CDR from our encoders: the recorder need not trim
+            self.ids[rel] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
+                                                 qos_profile_yaml(**qos), trim=False)
+        self.write = self.rec.write
+        self.enc = M.StateEncoder(joint_prefix)
+
+    def close(self):
+        """Finish the file and return its size [B]; raise RunFileError on an I/O error."""
+        self.rec.close()
+        if self.rec.error:
+            raise RunFileError(f'writing failed: {self.rec.error}')
+        return os.path.getsize(self.path)
+
+
+def parameters_record(params, preset, update_rate, dt_ns, run_overrides=None):
+    """
+    Return the parameters record (the node's keys) of a ``simulate`` run.
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The physics of the run.
+    preset : str
+        Name of the preset or parameter file.
+    update_rate : float
+        Update rate [Hz].
+    dt_ns : int
+        Step [ns].
+    run_overrides : dict, optional
+        Run settings other than :data:`SIMULATE_SETTINGS` (``joint_prefix``).
+
+    """
+    values = {name: str(getattr(params, name)) for name in ScrewParams.names()}
+    cfg = dict(SIMULATE_SETTINGS, update_rate=float(update_rate), **(run_overrides or {}))
+    values.update({name: str(v) for name, v in cfg.items()})
+    values.update(preset=str(preset), update_rate=str(float(update_rate)),
+                  clock_mode='simulate', dt_ns=str(dt_ns), t0_ns='0',
+                  command_log_time=COMMAND_LOG_TIME)
+    return values
+
+
+def params_from_record(record):
+    """
+    Return (ScrewParams, names of the fields missing) of a parameters record.
+
+    Missing fields take their defaults; raises ParameterError naming the
+    parameter and its recorded value.
+
+    Parameters
+    ----------
+    record : dict
+        ``{name: str(value)}`` as :func:`parameters_record` and the node write it.
+
+    """
+    missing = [name for name in ScrewParams.names() if name not in record]
+    return ScrewParams.from_text(record), missing
+
+
+def run_setting(record, name, default):
+    """
+    Return run setting ``name`` of a parameters record, typed as its RunSettings field.
+
+    The range is not checked (``simulate`` runs at rates the node refuses);
+    raises ParameterError naming the setting and its recorded value.
+
+    Parameters
+    ----------
+    record : dict
+        ``{name: str(value)}`` of a parameters record.
+    name : str
+        A field of :class:`~leadscrew_sim.core.settings.RunSettings`.
+    default : object
+        Value when the record lacks ``name``.
+
+    """
+    text = record.get(name)
+    return default if text is None else fields.from_text(_RUN_FIELDS[name], text)
