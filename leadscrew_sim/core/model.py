@@ -155,7 +155,7 @@ class LeadScrewModel:
     Parameters
     ----------
     params : ScrewParams, optional
-        Physical parameters (default: ``ScrewParams()``, the tr12x3 axis).
+        Physical parameters (default: ``ScrewParams()``, the field defaults).
     dt : float
         Fixed step [s]; the model integrates it in ``nsub`` equal substeps.
 
