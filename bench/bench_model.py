@@ -16,7 +16,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from leadscrew_sim import kernel as K
+from leadscrew_sim.core import kernel as K, layout as L
 from leadscrew_sim import LeadScrewModel, load_preset, preset_names
 
 
@@ -31,7 +31,7 @@ def track_torques(params, sim_seconds, dt=1e-3, amplitude=0.05, freq=0.5, bandwi
     """
     m = LeadScrewModel(params, dt=dt)
     P = m._P
-    rt = P[K.P_RT]
+    rt = P[L.P_RT]
     j = params.motor_inertia + params.screw_inertia + \
         (params.nut_mass + params.payload_mass) * rt ** 2
     w = 2 * math.pi * bandwidth
@@ -40,7 +40,7 @@ def track_torques(params, sim_seconds, dt=1e-3, amplitude=0.05, freq=0.5, bandwi
     out = np.empty(n)
     for i in range(n):
         q_ref = amplitude * math.sin(2 * math.pi * freq * (i * dt)) / rt    # q sense
-        t_q = kp * (q_ref - m.state[K.S_QM]) - kd * m.state[K.S_WM]
+        t_q = kp * (q_ref - m.state[L.S_QM]) - kd * m.state[L.S_WM]
         t_q = min(max(t_q, -params.max_torque), params.max_torque)
         out[i] = params.hand_sign * t_q
         m.advance(out[i])
@@ -84,7 +84,7 @@ def lsoda_side_by_side(sim_seconds):
                                      bearing_viscous=2e-4, stroke_min=-10.0, stroke_max=10.0)
     tq = -0.04
     m = LeadScrewModel(p, dt=1e-3)
-    y0 = m.state[[K.S_Q, K.S_DQ, K.S_XA, K.S_VA]].copy()
+    y0 = m.state[[L.S_Q, L.S_DQ, L.S_XA, L.S_VA]].copy()
     t0 = time.perf_counter()
     for _ in range(int(sim_seconds / 1e-3)):
         K.step(m._P, m.state, m.out, p.hand_sign * tq, 0.0, 1e-3, m.nsub, m._wk, m._iwk)
@@ -110,7 +110,7 @@ def lsoda_side_by_side(sim_seconds):
     t0 = time.perf_counter()
     sol = solve_ivp(rhs, (0, sim_seconds), y0, method='LSODA', rtol=1e-6, atol=1e-9)
     lsoda = time.perf_counter() - t0
-    dx = abs(sol.y[2, -1] - m.state[K.S_XA])
+    dx = abs(sol.y[2, -1] - m.state[L.S_XA])
     return ours, lsoda, dx, sol.nfev
 
 

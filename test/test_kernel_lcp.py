@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from leadscrew_sim import kernel as K
+from leadscrew_sim.core import friction as F, layout as L, lcp
 
 RNG_SEED = 20261123
 
@@ -31,7 +31,7 @@ def _element_rows(rng):
 def _delassus(rows, minv, ids):
     """W[a, b] = J_a M^-1 J_b^T, summed as the array kernel did (i = 0..3)."""
     n = len(ids)
-    W = np.zeros((K.MAXE, K.MAXE))
+    W = np.zeros((L.MAXE, L.MAXE))
     for a in range(n):
         for b in range(n):
             w = 0.0
@@ -43,18 +43,18 @@ def _delassus(rows, minv, ids):
 
 def _array_lcp(W, v0, lim, mode):
     n = len(v0)
-    p = np.zeros(K.MAXE)
-    A = np.zeros((K.MAXE, K.MAXE))
-    r = np.zeros(K.MAXE)
-    idx = np.zeros(K.MAXE, np.int64)
-    trial = np.zeros(K.MAXE, np.int64)
-    mode_a = np.zeros(K.MAXE, np.int64)
+    p = np.zeros(L.MAXE)
+    A = np.zeros((L.MAXE, L.MAXE))
+    r = np.zeros(L.MAXE)
+    idx = np.zeros(L.MAXE, np.int64)
+    trial = np.zeros(L.MAXE, np.int64)
+    mode_a = np.zeros(L.MAXE, np.int64)
     mode_a[:n] = mode
-    v = np.zeros(K.MAXE)
+    v = np.zeros(L.MAXE)
     v[:n] = v0
-    lm = np.zeros(K.MAXE)
+    lm = np.zeros(L.MAXE)
     lm[:n] = lim
-    ok = K._friction_lcp(W, v, lm, mode_a, n, p, A, r, idx, trial)
+    ok = lcp._friction_lcp(W, v, lm, mode_a, n, p, A, r, idx, trial)
     return ok, p[:n].copy(), mode_a[:n].copy()
 
 
@@ -90,7 +90,7 @@ def test_box1_equals_array_lcp_and_solves_it():
     for _ in range(3000):
         W, v0, lim, mode = _problem(rng, 1)
         ok, p_ref, m_ref = _array_lcp(W, v0, lim, mode)
-        p, m, searched = K._box1(W[0, 0], v0[0], lim[0], mode[0])
+        p, m, searched = lcp._box1(W[0, 0], v0[0], lim[0], mode[0])
         assert ok
         assert p == p_ref[0] and m == m_ref[0]
         _assert_box_lcp(W, v0, lim, np.array([p]))
@@ -102,8 +102,8 @@ def test_box2_equals_array_lcp_and_solves_it():
     for _ in range(3000):
         W, v0, lim, mode = _problem(rng, 2)
         ok, p_ref, m_ref = _array_lcp(W, v0, lim, mode)
-        p1, p2, m1, m2, searched = K._box2(W[0, 0], W[0, 1], W[1, 1], v0[0], v0[1],
-                                           lim[0], lim[1], mode[0], mode[1])
+        p1, p2, m1, m2, searched = lcp._box2(W[0, 0], W[0, 1], W[1, 1], v0[0], v0[1],
+                                             lim[0], lim[1], mode[0], mode[1])
         assert ok
         assert (p1, p2) == (p_ref[0], p_ref[1]) and (m1, m2) == (m_ref[0], m_ref[1])
         _assert_box_lcp(W, v0, lim, np.array([p1, p2]))
@@ -122,10 +122,10 @@ def test_stick_bound_never_exceeds_exact_limit():
         dst = rng.choice([1.0, rng.uniform(0.3, 3.0)])
         v = rng.choice([0.0, 1.0, -1.0]) * 10.0 ** rng.uniform(-18, 0) * vst * 3
         h, cl, na = 10.0 ** rng.uniform(-6, -3), rng.uniform(0.8, 1.0), 10.0 ** rng.uniform(-3, 5)
-        zcut = K._stribeck_cut(muk, drop, dst)
+        zcut = F._stribeck_cut(muk, drop, dst)
         hcl = h / cl
-        exact = K._thread_limit(na, v, muk, muv, drop, vst, dst, zcut, hcl)
-        lim, bound = K._thread_limits(na, 0, v, muk, muv, drop, vst, 1.0 / vst, dst, zcut,
+        exact = F._thread_limit(na, v, muk, muv, drop, vst, dst, zcut, hcl)
+        lim, bound = F._thread_limits(na, 0, v, muk, muv, drop, vst, 1.0 / vst, dst, zcut,
                                       hcl, hcl * (1.0 - 1e-14))
         if lim < 0.0:                     # the bound stands in for the limit
             assert 0.0 < bound <= exact
@@ -143,13 +143,13 @@ def test_stribeck_cut_is_exact():
         dst = rng.choice([1.0, rng.uniform(0.3, 3.0)])
         vst = 10.0 ** rng.uniform(-5, -1)
         muv = rng.uniform(0.0, 0.5)
-        zcut = K._stribeck_cut(muk, drop, dst)          # in units of |v| / v_st
+        zcut = F._stribeck_cut(muk, drop, dst)          # in units of |v| / v_st
         v = vst * zcut * rng.uniform(0.5, 3.0)          # both sides of the cut
-        assert K._mu(muk, muv, drop, vst, dst, zcut, v) == K.mu_apparent(
+        assert F._mu(muk, muv, drop, vst, dst, zcut, v) == F.mu_apparent(
             _pvec(muk, mus, vst, dst, muv), v)
 
 
 def _pvec(muk, mus, vst, dst, muv):
-    P = np.zeros(K.NP)
-    P[K.P_MUK], P[K.P_MUS], P[K.P_VST], P[K.P_DST], P[K.P_MUV] = muk, mus, vst, dst, muv
+    P = np.zeros(L.NP)
+    P[L.P_MUK], P[L.P_MUS], P[L.P_VST], P[L.P_DST], P[L.P_MUV] = muk, mus, vst, dst, muv
     return P

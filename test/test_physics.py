@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from leadscrew_sim import geometry as G
-from leadscrew_sim import kernel as K
+from leadscrew_sim.core import geometry as G
+from leadscrew_sim.core import layout as L
 from leadscrew_sim import LeadScrewModel, load_preset, ParameterError, ScrewParams
 
 INCH = 0.0254
@@ -361,7 +361,7 @@ def test_nonfinite_state_is_a_fault_and_keeps_the_last_finite_state():
     for batch in (False, True):
         m = LeadScrewModel(load_preset('tr8x8'))
         m.advance(0.05)
-        m.state[K.S_VA] = 1e308          # the next substep's position update overflows
+        m.state[L.S_VA] = 1e308          # the next substep's position update overflows
         before = m.state.copy()
         with pytest.raises(FloatingPointError, match='non-finite state'):
             if batch:

@@ -2,7 +2,7 @@
 Fixed-step integration kernel of the lead screw model (ROS-free, numba-compiled).
 
 Generalised coordinates, all in the "q sense" of physics.md section 3
-(q = h theta, so x = r_m tan(lambda) q for every hand):
+(q = hand sign times theta, so x = r_m tan(lambda) q for every hand):
     u = [motor angle rate, screw angle rate, nut A velocity, half-nut B velocity].
 
 One substep is semi-implicit (symplectic) Euler. Smooth forces (springs,
@@ -12,347 +12,40 @@ implicit velocity-level impulse bounded by its friction limit, found by solving
 the small box-constrained LCP exactly. A stuck element keeps its sliding
 velocity at zero to round-off, so a self-locking screw does not creep
 (no tanh or ramp regularisation).
+
+This module holds the integrator (_steps, with the flank contact law
+_flank_forces) and its entry points step and run_series, plus workspace().
+The array layouts are in layout, the friction law in friction, the LCP
+solvers in lcp; the compile options, shared by all, in _jit.
 """
 import math
 
 import numpy as np
 
-# Functions that take arrays are compiled without the numba runtime (_nrt=False):
-# they allocate nothing, and skipping the reference counting of their array
-# arguments was worth ~120 ns per substep in the array kernel of stop 8.
-try:  # numba is the accelerator (see README, "Why numba"); plain Python also works.
-    from numba import njit
-except ImportError:  # pragma: no cover
-    def njit(*args, **kwargs):
-        """Identity decorator used when numba is not installed."""
-        if args and callable(args[0]):
-            return args[0]
-        return lambda fn: fn
-
-# Every kernel function lets LLVM fuse a * b + c into one FMA instruction (only
-# that: no reassociation, NaN and Inf semantics kept). It shortens the substep's
-# dependency chain, about 20 % faster (bench/README.md); results stay
-# bit-identical from run to run on a machine. All functions get the same flag
-# because numba compiles a callee with its caller's flags.
-CONTRACT = {'contract'}
-
-# Parameter vector layout (floats) --------------------------------------------
-P_RT, P_RC, P_SL, P_CL = 0, 1, 2, 3          # r_m tan(lam), r_m cos(lam), sin, cos
-P_MUS, P_MUK, P_VST, P_DST, P_MUV = 4, 5, 6, 7, 8   # apparent (thread-corrected) mu'
-P_B, P_K, P_C = 9, 10, 11
-P_JM, P_JS, P_KC, P_CC, P_RIGID = 12, 13, 14, 15, 16
-P_CS, P_TS0, P_MUC, P_RCOL = 17, 18, 19, 20
-P_MA, P_MB, P_CX, P_FX0, P_GS = 21, 22, 23, 24, 25
-P_KES, P_CES, P_XMIN, P_XMAX = 26, 27, 28, 29
-P_TMAX, P_TAU, P_AB, P_FP, P_KP = 30, 31, 32, 33, 34
-P_FEXT = 35
-P_ZCUT = 36                                  # Stribeck cut-off, see _stribeck_cut
-NP = 37
-
-# State vector layout --------------------------------------------------------
-S_QM, S_WM, S_Q, S_DQ, S_XA, S_VA, S_XB, S_VB, S_TE, S_T = range(10)
-S_WIN, S_WEXT, S_EFRIC, S_EDAMP = 10, 11, 12, 13    # accumulated energies [J]
-S_FAPREV = 14                                       # last axial thread force [N]
-S_MODE0 = 15                                        # 4 warm-start friction modes
-S_NSEARCH = 19                                      # LCP warm-start misses (diagnostic)
-NS = 20
-
-# Per-step output layout (values of the last substep) --------------------------
-O_NLA, O_NUA, O_NLB, O_NUB = 0, 1, 2, 3       # in-plane flank normal forces [N]
-O_FFA, O_FFB = 4, 5                           # thread friction force along flank [N]
-O_VSA, O_VSB = 6, 7                           # sliding velocity [m/s]
-O_STICKA, O_STICKB = 8, 9                     # 1 stuck, 0 sliding, -1 no load
-O_CONTA, O_CONTB = 10, 11                     # 1 leading, -1 trailing, 0 backlash
-O_FAX = 12                                    # axial thread force on the nut(s) [N]
-O_TTH = 13                                    # thread torque on the screw [N m, q sense]
-O_TE = 14                                     # applied motor torque [N m, q sense]
-O_TBR = 15                                    # bearing + collar friction torque [N m, q]
-O_FG = 16                                     # guide Coulomb force [N]
-O_NSUB = 17
-NO = 18
-
-MAXE = 4   # friction elements: thread A, thread B, bearing/collar, guide
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def mu_apparent(P, v):
-    """
-    Apparent Stribeck friction coefficient mu'(|v|), >= 0, from the parameter vector.
-
-    The plain formula of physics.md section 6; step() uses _mu, the same law
-    with a bit-exact shortcut, tested against this one.
-    """
-    a = abs(v)
-    mu = P[P_MUK] + P[P_MUV] * a
-    drop = P[P_MUS] - P[P_MUK]
-    if drop != 0.0:
-        z = a / P[P_VST]
-        if P[P_DST] != 1.0:
-            z = z ** P[P_DST]
-        mu += drop * math.exp(-z)
-    return mu if mu > 0.0 else 0.0
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _solve_free(W, v0, lim, mode, n, p, A, r, idx):
-    """Solve for impulses given a stick/slip mode per element; True if consistent."""
-    nf = 0
-    for j in range(n):
-        if mode[j] != 0:
-            p[j] = mode[j] * lim[j]
-        else:
-            p[j] = 0.0
-            nf += 1
-    if nf > 0:
-        m = 0
-        for j in range(n):
-            if mode[j] == 0:
-                idx[m] = j
-                m += 1
-        for a in range(m):
-            ja = idx[a]
-            rhs = -v0[ja]
-            for j in range(n):
-                if mode[j] != 0:
-                    rhs -= W[ja, j] * p[j]
-            r[a] = rhs
-            for b in range(m):
-                A[a, b] = W[ja, idx[b]]
-            A[a, a] += 1e-12 * W[ja, ja] + 1e-300
-        # Gaussian elimination with partial pivoting (m <= 4)
-        for c in range(m):
-            piv = c
-            for rr in range(c + 1, m):
-                if abs(A[rr, c]) > abs(A[piv, c]):
-                    piv = rr
-            if piv != c:
-                for cc in range(m):
-                    tmp = A[c, cc]
-                    A[c, cc] = A[piv, cc]
-                    A[piv, cc] = tmp
-                tmp = r[c]
-                r[c] = r[piv]
-                r[piv] = tmp
-            for rr in range(c + 1, m):
-                fct = A[rr, c] / A[c, c]
-                for cc in range(c, m):
-                    A[rr, cc] -= fct * A[c, cc]
-                r[rr] -= fct * r[c]
-        for c in range(m - 1, -1, -1):
-            s = r[c]
-            for cc in range(c + 1, m):
-                s -= A[c, cc] * r[cc]
-            r[c] = s / A[c, c]
-        for a in range(m):
-            p[idx[a]] = r[a]
-    # consistency check
-    for j in range(n):
-        vj = v0[j]
-        for k in range(n):
-            vj += W[j, k] * p[k]
-        tol = 1e-9 * (abs(v0[j]) + W[j, j] * lim[j]) + 1e-300
-        if mode[j] == 0:
-            if abs(p[j]) > lim[j] * (1.0 + 1e-9):
-                return False
-        elif mode[j] * vj > tol:
-            return False
-    return True
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial):
-    """Box LCP of the friction impulses: warm start, else exhaustive modes."""
-    if _solve_free(W, v0, lim, mode, n, p, A, r, idx):
-        return True
-    total = 1
-    for j in range(n):
-        total *= 3
-    for code in range(total):
-        c = code
-        for j in range(n):
-            trial[j] = (c % 3) - 1
-            c //= 3
-        if _solve_free(W, v0, lim, trial, n, p, A, r, idx):
-            for j in range(n):
-                mode[j] = trial[j]
-            return True
-    return False
-
-
-REC_STATE = 10   # S[0:10] is recorded per step by run_series, then the NO outputs
-WK_IO = 104      # workspace of step(): 104 floats for the LCP, 2 for step()'s inputs,
-WK_REC = 106     # one scratch record row
-WK_FLOAT = WK_REC + REC_STATE + NO
-WK_INT = 16
+from ._jit import kernel_jit
+from .friction import _thread_limit, _thread_limits
+from .lcp import _box1, _box2, _friction_lcp, _solve2, _solve_free
+from .layout import (
+    IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL, MAXE, NO,
+    O_CONTA, O_CONTB, O_FAX, O_FFA, O_FFB, O_FG, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB,
+    O_STICKA, O_STICKB, O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
+    P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_DST, P_FEXT, P_FP, P_FX0, P_GS,
+    P_JM, P_JS, P_K, P_KC, P_KES, P_KP, P_MA, P_MB, P_MUC, P_MUK, P_MUS, P_MUV, P_RC,
+    P_RCOL, P_RIGID, P_RT, P_SL, P_TAU, P_TMAX, P_TS0, P_VST, P_XMAX, P_XMIN, P_ZCUT,
+    REC_ROW, REC_STATE,
+    S_DQ, S_EDAMP, S_EFRIC, S_FAPREV, S_MODE0, S_NSEARCH, S_Q, S_QM, S_T, S_TE, S_VA,
+    S_VB, S_WEXT, S_WIN, S_WM, S_XA, S_XB,
+    WK_A, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC, WK_V0,
+    WK_W,
+)
 
 
 def workspace():
-    """Return the (float, int) scratch arrays that step() needs."""
+    """Return the (float, int) scratch arrays that step() and run_series() need."""
     return np.zeros(WK_FLOAT), np.zeros(WK_INT, dtype=np.int64)
 
 
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _mu(muk, muv, drop, vst, dst, zcut, v):
-    """
-    Apparent Stribeck coefficient mu'(|v|) >= 0 from unpacked parameters.
-
-    The Stribeck term is skipped where it cannot change the sum: for
-    |v| / v_st > zcut (see _stribeck_cut) and a sum not below mu_k, it is less
-    than half an ulp of the sum, so the result is bit-identical to mu_apparent.
-    """
-    a = abs(v)
-    mu = muk + muv * a
-    if drop != 0.0:
-        z = a / vst
-        if z <= zcut or mu < muk:
-            if dst != 1.0:
-                z = z ** dst
-            mu += drop * math.exp(-z)
-    return mu if mu > 0.0 else 0.0
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _mu_lower(muk, muv, drop, ivst, dst, v):
-    """
-    Return a lower bound of _mu(v) without exp() or division: exp(-z) >= max(0, 1 - z).
-
-    ivst = 1 / v_st. The 2e-15 |drop| margin (9 ulp) covers the rounding of
-    1 - z and of the reciprocal against that of exp(-z) in _mu.
-    """
-    mu = muk + muv * abs(v)
-    if drop > 0.0:
-        z = abs(v) * ivst
-        if dst == 1.0 and z < 1.0:
-            mu += drop * (1.0 - z) - 2e-15 * drop
-    elif drop < 0.0:
-        mu += drop + 2e-15 * drop
-    return mu
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _stribeck_cut(muk, drop, dst):
-    """
-    Return the |v| / v_st above which |drop| exp(-z) < mu_k 2**-54 (half an ulp of mu_k).
-
-    37.5 > 54 ln 2 = 37.43; returns inf where no cut is safe (mu_k = 0).
-    """
-    if muk <= 0.0 or drop == 0.0:
-        return math.inf
-    zc = 37.5 + math.log(abs(drop) / muk)
-    if zc <= 0.0:
-        return 0.0
-    return zc if dst == 1.0 else zc ** (1.0 / dst)
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _box1(w, v0, lim, mode):
-    """
-    One friction element: (impulse, mode, searched) of the scalar box LCP.
-
-    The same arithmetic as _solve_free/_friction_lcp with n = 1: the warm-start
-    mode first, then the modes -1, 0, +1 in that order.
-    """
-    searched = False
-    for attempt in range(4):
-        md = mode if attempt == 0 else attempt - 2
-        if md != 0:
-            p = md * lim
-        else:
-            p = -v0 / (w + (1e-12 * w + 1e-300))
-        if md == 0:
-            ok = abs(p) <= lim * (1.0 + 1e-9)
-        else:
-            tol = 1e-9 * (abs(v0) + w * lim) + 1e-300
-            ok = md * (v0 + w * p) <= tol
-        if ok:
-            return p, md, searched
-        searched = True
-    return lim, mode, True
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _solve2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
-    """
-    Two friction elements in the given modes: (p1, p2, consistent).
-
-    The same arithmetic as _solve_free with n = 2 (regularised diagonal,
-    partial pivoting), so both give bit-identical impulses.
-    """
-    p1 = m1 * l1 if m1 != 0 else 0.0
-    p2 = m2 * l2 if m2 != 0 else 0.0
-    if m1 == 0 and m2 == 0:
-        a00 = w11 + (1e-12 * w11 + 1e-300)
-        a01 = w12
-        a10 = w12
-        a11 = w22 + (1e-12 * w22 + 1e-300)
-        r0 = -v1
-        r1 = -v2
-        if abs(a10) > abs(a00):
-            a00, a10 = a10, a00
-            a01, a11 = a11, a01
-            r0, r1 = r1, r0
-        fct = a10 / a00
-        a11 -= fct * a01
-        r1 -= fct * r0
-        p2 = r1 / a11
-        p1 = (r0 - a01 * p2) / a00
-    elif m1 == 0:
-        p1 = (-v1 - w12 * p2) / (w11 + (1e-12 * w11 + 1e-300))
-    elif m2 == 0:
-        p2 = (-v2 - w12 * p1) / (w22 + (1e-12 * w22 + 1e-300))
-    if m1 == 0:
-        if abs(p1) > l1 * (1.0 + 1e-9):
-            return p1, p2, False
-    elif m1 * (v1 + w11 * p1 + w12 * p2) > 1e-9 * (abs(v1) + w11 * l1) + 1e-300:
-        return p1, p2, False
-    if m2 == 0:
-        if abs(p2) > l2 * (1.0 + 1e-9):
-            return p1, p2, False
-    elif m2 * (v2 + w12 * p1 + w22 * p2) > 1e-9 * (abs(v2) + w22 * l2) + 1e-300:
-        return p1, p2, False
-    return p1, p2, True
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _box2(w11, w12, w22, v1, v2, l1, l2, m1, m2):
-    """Two friction elements: (p1, p2, mode1, mode2, searched), as _friction_lcp."""
-    p1, p2, ok = _solve2(w11, w12, w22, v1, v2, l1, l2, m1, m2)
-    if ok:
-        return p1, p2, m1, m2, False
-    for code in range(9):
-        t1 = code % 3 - 1
-        t2 = code // 3 - 1
-        p1, p2, ok = _solve2(w11, w12, w22, v1, v2, l1, l2, t1, t2)
-        if ok:
-            return p1, p2, t1, t2, True
-    return p1, p2, m1, m2, True
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl):
-    """Exact impulse limit [N s] of a thread: mu'(vs) load h / cos(lambda); hcl = h / cos."""
-    return _mu(muk, muv, drop, vst, dst, zcut, vs) * load * hcl
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
-def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hcl_lo):
-    """
-    Return (limit, lower bound) [N s] of a thread's friction impulse.
-
-    A thread warm-started stuck (mode 0) gets the exp-free lower bound only,
-    and limit -1 (not computed yet): the bound confirms most sticks, with the
-    very impulse of the exact solve. No load: (0, 0), the thread is inactive.
-    """
-    if load <= 0.0:
-        return 0.0, 0.0
-    if mode == 0:
-        lo = _mu_lower(muk, muv, drop, ivst, dst, vs) * load * hcl_lo
-        if lo > 0.0:
-            return -1.0, lo
-    return _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl), 0.0
-
-
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+@kernel_jit
 def _flank_forces(gap, gap_rate, hb, k, c):
     """
     Return (lower, upper) in-plane flank forces [N] and penetrations [m] of a nut body.
@@ -371,7 +64,7 @@ def _flank_forces(gap, gap_rate, hb, k, c):
     return pl, pu, el, eu
 
 
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+@kernel_jit
 def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     """
     Advance S by one step of dt (nsub equal substeps) per entry of torques/forces.
@@ -386,15 +79,86 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     within a step. One or two active friction elements are solved by the
     scalar _box1/_box2, three or four by the general box LCP on the workspace
     arrays; all give the same impulses (test/test_kernel_lcp.py).
+
+    Friction elements, in this order: a thread of nut A, b thread of half-nut B,
+    c screw bearing plus thrust collar, g nut guide (ids 0, 1, 2, 3). Bodies:
+    m motor, s screw, a nut A, b half-nut B. Angles, rates and torques are in
+    the q sense; "impulse" is per substep [N s] (bearing: [N m s]).
+
+    Locals (name: meaning [unit]):
+      h: substep dt / nsub [s];  rigid: motor and screw are one body;
+      two_nuts: the anti-backlash half-nut B is simulated
+      rt, rc, sl, cl: r_m tan(lambda) [m/rad], r_m cos(lambda) [m/rad],
+        sin(lambda), cos(lambda) [-]
+      half_b, backlash: half the backlash, the backlash [m]
+      k, c: flank contact stiffness [N/m] and damping [N s/m]
+      kc, cc: coupling stiffness [N m/rad] and damping [N m s/rad]
+      cs, cx: bearing [N m s/rad] and guide [N s/m] viscous damping
+      ma, mb: masses of nut A (with payload) and half-nut B [kg]
+      kes, ces, xmin, xmax: end stops of nut A [N/m], [N s/m], [m], [m]
+      muk, muv, drop, vst, ivst, dst, zcut: friction law, see friction._mu
+        (drop = mu_s' - mu_k', ivst = 1 / vst [s/m])
+      hcl, hcl_lo: h / cos(lambda) [s], and less 1e-14 relative for the stick bound
+      f_pre, k_pre: anti-backlash preload [N] and spring stiffness [N/m]
+      ts0: bearing Coulomb torque [N m];  mu_r_col: collar mu times radius [m]
+      lim_g: guide impulse limit [N s];  gs: g sin(inclination) [m/s^2]
+      mi_m, mi_s, mi_a, mi_b: inverse inertia [1/(kg m^2)] or mass [1/kg] of the
+        bodies (mi_s includes the motor if rigid)
+      hmi_m, hmi_s, hmi_a, hmi_b: h times these: velocity change per unit force
+      w_aa, w_ab, w_ac, w_ag, w_bb: Delassus entries J_x M^-1 J_y^T of the
+        elements x, y (w_bc = w_ac, w_cc = mi_s, w_gg = mi_a, the rest 0)
+      w_table: the full 4 x 4 Delassus matrix, row-major in element order
+      nrecip_w_aa: -1 / (regularised w_aa), the stick impulse per unit velocity
+      alpha: motor torque lag factor per substep [-]
+      t_sat: saturated torque command [N m];  fext: total external force [N]
+      qm, q, xa, xb: motor angle, screw angle [rad]; nut A, B positions [m]
+      wm, dq, va, vb: motor rate, screw rate [rad/s]; nut A, B velocities [m/s]
+      wm0, dq0, va0, vb0: the same at the start of the substep
+      wm_sum, dq_sum, va_sum, vb_sum: start + end velocity of the substep (twice
+        the mid-step velocity), for the energy sums
+      qm_new, q_new, xa_new, xb_new, te_new: positions and motor torque after
+        the substep
+      te: applied motor torque [N m];  t: time [s]
+      win, wext, efric, edamp: the energies of S_WIN .. S_EDAMP [J]
+      faprev: axial thread force of the last substep [N] (collar limit)
+      mode_a, mode_b, mode_c, mode_g: stick/slip mode of each element (-1, 0, 1),
+        the warm start of the next substep
+      nsearch: count of warm-start misses [-]
+      f_m, f_s, f_a, f_b: smooth generalised forces on the bodies [N m], [N]
+      t_cspring, t_cdamp: coupling spring and damper torques [N m]
+      pen_stop_lo, pen_stop_hi: end stop penetrations [m];  f_stop_lo,
+        f_stop_hi: their forces [N]
+      flo_a, fup_a, flo_b, fup_b: in-plane lower/upper flank forces of nut A/B [N]
+      pen_lo_a, pen_up_a, pen_lo_b, pen_up_b: their flank penetrations [m]
+      fn_a, fn_b: net flank force on nut A/B [N];  f_spring: preload spring [N]
+      load_a, load_b: flank load of the thread, flo + fup [N]
+      vs_a, vs_b: thread sliding velocities at the substep start [m/s]
+      lim_a, lim_b, lim_c: impulse limits (0: inactive; -1: stuck thread whose
+        limit is not computed yet);  lo_a, lo_b: exp-free lower bounds of them
+      nact: number of active friction elements;  a_alone: thread A is the only one
+      imp_a, imp_b, imp_c, imp_g: friction impulses of the substep
+      vfree_a: thread A sliding velocity before friction [m/s]
+      searched: the warm-start mode was not the solution
+      lim_of, lo_of, vfree_of, mode_of: limits, bounds, free velocities, modes
+        of the elements, indexed by element id
+      e1, e2: ids of the one or two active elements (e2 = -1 if one)
+      lim1, vfree1, w1, imp1, mode1 (and ...2), w12: the scalar LCP of e1 (e2)
+      W, v0, lim, p, A, r, mode, eid, idx, trial: workspace views of the general
+        LCP (see lcp._solve_free; eid: element id of each active slot)
+      sum_in, sum_ext, sum_damp, sum_fric: per-step sums of the energy terms
+      damp_pow: the substep's damper term;  gap_sum_a, gap_sum_b: start + end
+        flank gap rate of nut A/B [m/s]
+      ff_a, ff_b: thread friction forces [N];  t_br: bearing friction torque
+        [N m];  f_g: guide friction force [N];  fa_thr: axial thread force [N]
     """
     h = dt / nsub
     rigid = P[P_RIGID] > 0.5
-    ab = P[P_AB] > 0.5
+    two_nuts = P[P_AB] > 0.5
     rt = P[P_RT]
     rc = P[P_RC]
     sl = P[P_SL]
     cl = P[P_CL]
-    hb = 0.5 * P[P_B]
+    half_b = 0.5 * P[P_B]
     k = P[P_K]
     c = P[P_C]
     kc = P[P_KC]
@@ -418,45 +182,48 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     # so its limit stays below the exact one whatever the rounding of either.
     hcl = h / cl
     hcl_lo = hcl * (1.0 - 1e-14)
-    fp = P[P_FP]
-    kp = P[P_KP]
-    bb = P[P_B]
+    f_pre = P[P_FP]
+    k_pre = P[P_KP]
+    backlash = P[P_B]
     ts0 = P[P_TS0]
-    mcr = P[P_MUC] * P[P_RCOL]
-    lg = h * P[P_FX0]
+    mu_r_col = P[P_MUC] * P[P_RCOL]
+    lim_g = h * P[P_FX0]
     # inverse masses; element Jacobian rows (q sense): thread A [0, rc, sl, 0],
     # thread B [0, rc, 0, sl], bearing/collar [0, 1, 0, 0], guide [0, 0, 1, 0]
-    mi0 = 1.0 / P[P_JM]
-    mi1 = 1.0 / (P[P_JS] + (P[P_JM] if rigid else 0.0))
-    mi2 = 1.0 / ma
-    mi3 = 1.0 / mb
-    # Delassus matrix entries J_a M^-1 J_b^T (w13 = w23 = 0)
-    w00 = rc * rc * mi1 + sl * sl * mi2
-    w01 = rc * rc * mi1
-    w02 = rc * mi1
-    w03 = sl * mi2
-    w11 = rc * rc * mi1 + sl * sl * mi3
-    hmi0 = h * mi0   # velocity change per unit force in one substep [1/(kg m^2) s, 1/kg s]
-    hmi1 = h * mi1
-    hmi2 = h * mi2
-    hmi3 = h * mi3
-    niden0 = -1.0 / (w00 + (1e-12 * w00 + 1e-300))
+    mi_m = 1.0 / P[P_JM]
+    mi_s = 1.0 / (P[P_JS] + (P[P_JM] if rigid else 0.0))
+    mi_a = 1.0 / ma
+    mi_b = 1.0 / mb
+    # Delassus matrix entries J_x M^-1 J_y^T of the elements x, y (w_bg = w_cg = 0)
+    w_aa = rc * rc * mi_s + sl * sl * mi_a
+    w_ab = rc * rc * mi_s
+    w_ac = rc * mi_s
+    w_ag = sl * mi_a
+    w_bb = rc * rc * mi_s + sl * sl * mi_b
+    hmi_m = h * mi_m   # velocity change per unit force in a substep [s/(kg m^2), s/kg]
+    hmi_s = h * mi_s
+    hmi_a = h * mi_a
+    hmi_b = h * mi_b
+    nrecip_w_aa = -1.0 / (w_aa + (1e-12 * w_aa + 1e-300))
     # the full symmetric 4 x 4 matrix, row-major, for the general LCP
-    wtab = (w00, w01, w02, w03, w01, w11, w02, 0.0, w02, w02, mi1, 0.0, w03, 0.0, 0.0, mi2)
+    w_table = (w_aa, w_ab, w_ac, w_ag,
+               w_ab, w_bb, w_ac, 0.0,
+               w_ac, w_ac, mi_s, 0.0,
+               w_ag, 0.0, 0.0, mi_a)
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     gs = P[P_GS]
     for i in range(torques.shape[0]):
-        tsat = min(max(torques[i], -P[P_TMAX]), P[P_TMAX])
+        t_sat = min(max(torques[i], -P[P_TMAX]), P[P_TMAX])
         fext = P[P_FEXT] + forces[i]
         # state in locals
         qm = S[S_QM]
         q = S[S_Q]
         xa = S[S_XA]
         xb = S[S_XB]
-        u0 = S[S_WM]
-        u1 = S[S_DQ]
-        u2 = S[S_VA]
-        u3 = S[S_VB]
+        wm = S[S_WM]
+        dq = S[S_DQ]
+        va = S[S_VA]
+        vb = S[S_VB]
         te = S[S_TE]
         t = S[S_T]
         win = S[S_WIN]
@@ -464,297 +231,305 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
         efric = S[S_EFRIC]
         edamp = S[S_EDAMP]
         faprev = S[S_FAPREV]
-        md0 = int(S[S_MODE0])
-        md1 = int(S[S_MODE0 + 1])
-        md2 = int(S[S_MODE0 + 2])
-        md3 = int(S[S_MODE0 + 3])
+        mode_a = int(S[S_MODE0])
+        mode_b = int(S[S_MODE0 + 1])
+        mode_c = int(S[S_MODE0 + 2])
+        mode_g = int(S[S_MODE0 + 3])
         nsearch = S[S_NSEARCH]
-        pla = pua = plb = pub = 0.0
-        pa = pb = pc = pg = 0.0
-        a_in = a_ext = a_damp = a_fric = 0.0   # energy sums of the step (see below)
+        flo_a = fup_a = flo_b = fup_b = 0.0
+        imp_a = imp_b = imp_c = imp_g = 0.0
+        sum_in = sum_ext = sum_damp = sum_fric = 0.0   # energy sums of the step (see below)
         for _ in range(nsub):
-            te_n = te + alpha * (tsat - te)
-            f0 = 0.0
-            f1 = 0.0
-            f2 = 0.0
-            f3 = 0.0
+            te_new = te + alpha * (t_sat - te)
+            f_m = 0.0
+            f_s = 0.0
+            f_a = 0.0
+            f_b = 0.0
             # motor and coupling
             if rigid:
-                f1 += te_n
+                f_s += te_new
             else:
-                f0 += te_n
-                tcs = kc * (qm - q)
-                tcd = cc * (u0 - u1)
-                f0 -= tcs + tcd
-                f1 += tcs + tcd
+                f_m += te_new
+                t_cspring = kc * (qm - q)
+                t_cdamp = cc * (wm - dq)
+                f_m -= t_cspring + t_cdamp
+                f_s += t_cspring + t_cdamp
             # bearing and guide viscous, gravity, external force
-            f1 -= cs * u1
-            f2 -= cx * u2
-            f2 += fext - ma * gs
-            if ab:
-                f3 -= mb * gs
+            f_s -= cs * dq
+            f_a -= cx * va
+            f_a += fext - ma * gs
+            if two_nuts:
+                f_b -= mb * gs
             # end stops on nut A (unilateral, damper never pulls)
-            fes_lo = 0.0
-            fes_hi = 0.0
-            pen = xmin - xa
-            if pen > 0.0:
-                fes_lo = max(0.0, kes * pen - ces * u2)
-                f2 += fes_lo
-            pen2 = xa - xmax
-            if pen2 > 0.0:
-                fes_hi = max(0.0, kes * pen2 + ces * u2)
-                f2 -= fes_hi
+            f_stop_lo = 0.0
+            f_stop_hi = 0.0
+            pen_stop_lo = xmin - xa
+            if pen_stop_lo > 0.0:
+                f_stop_lo = max(0.0, kes * pen_stop_lo - ces * va)
+                f_a += f_stop_lo
+            pen_stop_hi = xa - xmax
+            if pen_stop_hi > 0.0:
+                f_stop_hi = max(0.0, kes * pen_stop_hi + ces * va)
+                f_a -= f_stop_hi
             # thread contact of nut A
-            pla, pua, ela, eua = _flank_forces(xa - rt * q, u2 - rt * u1, hb, k, c)
-            fna = pla - pua
-            f2 += fna
-            f1 -= rt * fna
-            plb = 0.0
-            pub = 0.0
-            elb = 0.0
-            eub = 0.0
-            if ab:
-                plb, pub, elb, eub = _flank_forces(xb - rt * q, u3 - rt * u1, hb, k, c)
-                fnb = plb - pub
-                f3 += fnb
-                f1 -= rt * fnb
-                fs = fp + kp * (bb - (xb - xa))
-                f3 += fs
-                f2 -= fs
+            flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq,
+                                                             half_b, k, c)
+            fn_a = flo_a - fup_a
+            f_a += fn_a
+            f_s -= rt * fn_a
+            flo_b = 0.0
+            fup_b = 0.0
+            pen_lo_b = 0.0
+            pen_up_b = 0.0
+            if two_nuts:
+                flo_b, fup_b, pen_lo_b, pen_up_b = _flank_forces(xb - rt * q, vb - rt * dq,
+                                                                 half_b, k, c)
+                fn_b = flo_b - fup_b
+                f_b += fn_b
+                f_s -= rt * fn_b
+                f_spring = f_pre + k_pre * (backlash - (xb - xa))
+                f_b += f_spring
+                f_a -= f_spring
             # unconstrained velocity
-            un0 = u0
-            un1 = u1
-            un2 = u2
-            un3 = u3
+            wm0 = wm
+            dq0 = dq
+            va0 = va
+            vb0 = vb
             if not rigid:
-                u0 = u0 + f0 * hmi0
-            u1 = u1 + f1 * hmi1
-            u2 = u2 + f2 * hmi2
-            if ab:
-                u3 = u3 + f3 * hmi3
+                wm = wm + f_m * hmi_m
+            dq = dq + f_s * hmi_s
+            va = va + f_a * hmi_a
+            if two_nuts:
+                vb = vb + f_b * hmi_b
             # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
-            na = pla + pua
-            nb = plb + pub
-            vsa = rc * un1 + sl * un2
-            vsb = rc * un1 + sl * un3
-            la, la_lo = _thread_limits(na, md0, vsa, muk, muv, drop, vst, ivst, dst, zcut,
-                                       hcl, hcl_lo)
-            lb, lb_lo = _thread_limits(nb, md1, vsb, muk, muv, drop, vst, ivst, dst, zcut,
-                                       hcl, hcl_lo)
-            lbr = h * (ts0 + mcr * abs(faprev))
-            n = (la != 0.0) + (lb != 0.0) + (lbr > 0.0) + (lg > 0.0)
-            pa = pb = pc = pg = 0.0   # impulses of thread A, thread B, bearing, guide
-            a_only = n == 1 and la != 0.0
-            if a_only:   # thread A alone, the common case, without the tables below
-                vv = rc * u1 + sl * u2
-                srch = False
-                if la < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                    pa = vv * niden0
-                    if abs(pa) > la_lo * (1.0 + 1e-9):
-                        la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
-                        pa, md0, srch = _box1(w00, vv, la, 0)
+            load_a = flo_a + fup_a
+            load_b = flo_b + fup_b
+            vs_a = rc * dq0 + sl * va0
+            vs_b = rc * dq0 + sl * vb0
+            lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, muk, muv, drop, vst, ivst, dst,
+                                         zcut, hcl, hcl_lo)
+            lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, muk, muv, drop, vst, ivst, dst,
+                                         zcut, hcl, hcl_lo)
+            lim_c = h * (ts0 + mu_r_col * abs(faprev))
+            nact = (lim_a != 0.0) + (lim_b != 0.0) + (lim_c > 0.0) + (lim_g > 0.0)
+            imp_a = imp_b = imp_c = imp_g = 0.0   # impulses of thread A, thread B, bearing, guide
+            a_alone = nact == 1 and lim_a != 0.0
+            if a_alone:   # thread A alone, the common case, without the tables below
+                vfree_a = rc * dq + sl * va
+                searched = False
+                if lim_a < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                    imp_a = vfree_a * nrecip_w_aa
+                    if abs(imp_a) > lo_a * (1.0 + 1e-9):
+                        lim_a = _thread_limit(load_a, vs_a, muk, muv, drop, vst, dst, zcut, hcl)
+                        imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, 0)
                 else:
-                    pa, md0, srch = _box1(w00, vv, la, md0)
-                if srch:
+                    imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, mode_a)
+                if searched:
                     nsearch += 1.0
-            elif 0 < n <= 2:
+            elif 0 < nact <= 2:
                 # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
-                lims = (la, lb, lbr, lg)
-                los = (la_lo, lb_lo, lbr, lg)
-                vels = (rc * u1 + sl * u2, rc * u1 + sl * u3, u1, u2)
-                modes = (md0, md1, md2, md3)
-                e1 = 0 if la != 0.0 else (1 if lb != 0.0 else (2 if lbr > 0.0 else 3))
+                lim_of = (lim_a, lim_b, lim_c, lim_g)
+                lo_of = (lo_a, lo_b, lim_c, lim_g)
+                vfree_of = (rc * dq + sl * va, rc * dq + sl * vb, dq, va)
+                mode_of = (mode_a, mode_b, mode_c, mode_g)
+                e1 = 0 if lim_a != 0.0 else (1 if lim_b != 0.0 else (2 if lim_c > 0.0 else 3))
                 e2 = -1
-                if n == 2:
-                    e2 = 3 if lg > 0.0 else (2 if lbr > 0.0 else 1)
-                l1 = lims[e1]
-                v1 = vels[e1]
-                w1 = wtab[5 * e1]
-                srch = False
-                if n == 1:
-                    if l1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                        p1 = -v1 / (w1 + (1e-12 * w1 + 1e-300))
-                        m1 = 0
-                        if abs(p1) > los[e1] * (1.0 + 1e-9):
-                            l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
-                                               muk, muv, drop, vst, dst, zcut, hcl)
-                            p1, m1, srch = _box1(w1, v1, l1, 0)
+                if nact == 2:
+                    e2 = 3 if lim_g > 0.0 else (2 if lim_c > 0.0 else 1)
+                lim1 = lim_of[e1]
+                vfree1 = vfree_of[e1]
+                w1 = w_table[5 * e1]
+                searched = False
+                if nact == 1:
+                    if lim1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                        imp1 = -vfree1 / (w1 + (1e-12 * w1 + 1e-300))
+                        mode1 = 0
+                        if abs(imp1) > lo_of[e1] * (1.0 + 1e-9):
+                            lim1 = _thread_limit(load_a if e1 == 0 else load_b,
+                                                 vs_a if e1 == 0 else vs_b,
+                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                            imp1, mode1, searched = _box1(w1, vfree1, lim1, 0)
                     else:
-                        p1, m1, srch = _box1(w1, v1, l1, modes[e1])
-                    p2 = 0.0
-                    m2 = 0
+                        imp1, mode1, searched = _box1(w1, vfree1, lim1, mode_of[e1])
+                    imp2 = 0.0
+                    mode2 = 0
                 else:
-                    l2 = lims[e2]
-                    v2 = vels[e2]
-                    w2 = wtab[5 * e2]
-                    w12 = wtab[4 * e1 + e2]
+                    lim2 = lim_of[e2]
+                    vfree2 = vfree_of[e2]
+                    w2 = w_table[5 * e2]
+                    w12 = w_table[4 * e1 + e2]
                     ok = False
-                    if (l1 < 0.0 or l2 < 0.0) and modes[e1] == 0 and modes[e2] == 0:
-                        p1, p2, ok = _solve2(w1, w12, w2, v1, v2, los[e1], los[e2], 0, 0)
-                        m1 = 0
-                        m2 = 0
+                    if (lim1 < 0.0 or lim2 < 0.0) and mode_of[e1] == 0 and mode_of[e2] == 0:
+                        imp1, imp2, ok = _solve2(w1, w12, w2, vfree1, vfree2,
+                                                 lo_of[e1], lo_of[e2], 0, 0)
+                        mode1 = 0
+                        mode2 = 0
                     if not ok:
-                        if l1 < 0.0:
-                            l1 = _thread_limit(na if e1 == 0 else nb, vsa if e1 == 0 else vsb,
-                                               muk, muv, drop, vst, dst, zcut, hcl)
-                        if l2 < 0.0:
-                            l2 = _thread_limit(na if e2 == 0 else nb, vsa if e2 == 0 else vsb,
-                                               muk, muv, drop, vst, dst, zcut, hcl)
-                        p1, p2, m1, m2, srch = _box2(w1, w12, w2, v1, v2, l1, l2,
-                                                     modes[e1], modes[e2])
-                if srch:
+                        if lim1 < 0.0:
+                            lim1 = _thread_limit(load_a if e1 == 0 else load_b,
+                                                 vs_a if e1 == 0 else vs_b,
+                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                        if lim2 < 0.0:
+                            lim2 = _thread_limit(load_a if e2 == 0 else load_b,
+                                                 vs_a if e2 == 0 else vs_b,
+                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                        imp1, imp2, mode1, mode2, searched = _box2(
+                            w1, w12, w2, vfree1, vfree2, lim1, lim2, mode_of[e1], mode_of[e2])
+                if searched:
                     nsearch += 1.0
-                pa = p1 if e1 == 0 else 0.0
-                pb = p1 if e1 == 1 else (p2 if e2 == 1 else 0.0)
-                pc = p1 if e1 == 2 else (p2 if e2 == 2 else 0.0)
-                pg = p1 if e1 == 3 else (p2 if e2 == 3 else 0.0)
-                md0 = m1 if e1 == 0 else md0
-                md1 = m1 if e1 == 1 else (m2 if e2 == 1 else md1)
-                md2 = m1 if e1 == 2 else (m2 if e2 == 2 else md2)
-                md3 = m1 if e1 == 3 else (m2 if e2 == 3 else md3)
-            elif n > 2:   # the general box LCP on the workspace arrays
-                if la < 0.0:
-                    la = _thread_limit(na, vsa, muk, muv, drop, vst, dst, zcut, hcl)
-                if lb < 0.0:
-                    lb = _thread_limit(nb, vsb, muk, muv, drop, vst, dst, zcut, hcl)
-                W = wk[36:52].reshape((MAXE, MAXE))
-                v0 = wk[52:56]
-                lim = wk[56:60]
-                p = wk[60:64]
-                A = wk[64:80].reshape((MAXE, MAXE))
-                r = wk[80:84]
-                mode = iwk[0:4]
-                eid = iwk[4:8]
-                idx = iwk[8:12]
-                trial = iwk[12:16]
-                n = 0
-                for e, le in ((0, la), (1, lb), (2, lbr), (3, lg)):
-                    if le > 0.0:
-                        eid[n] = e
-                        lim[n] = le
-                        n += 1
-                for a in range(n):
+                imp_a = imp1 if e1 == 0 else 0.0
+                imp_b = imp1 if e1 == 1 else (imp2 if e2 == 1 else 0.0)
+                imp_c = imp1 if e1 == 2 else (imp2 if e2 == 2 else 0.0)
+                imp_g = imp1 if e1 == 3 else (imp2 if e2 == 3 else 0.0)
+                mode_a = mode1 if e1 == 0 else mode_a
+                mode_b = mode1 if e1 == 1 else (mode2 if e2 == 1 else mode_b)
+                mode_c = mode1 if e1 == 2 else (mode2 if e2 == 2 else mode_c)
+                mode_g = mode1 if e1 == 3 else (mode2 if e2 == 3 else mode_g)
+            elif nact > 2:   # the general box LCP on the workspace arrays
+                if lim_a < 0.0:
+                    lim_a = _thread_limit(load_a, vs_a, muk, muv, drop, vst, dst, zcut, hcl)
+                if lim_b < 0.0:
+                    lim_b = _thread_limit(load_b, vs_b, muk, muv, drop, vst, dst, zcut, hcl)
+                W = wk[WK_W:WK_V0].reshape((MAXE, MAXE))
+                v0 = wk[WK_V0:WK_LIM]
+                lim = wk[WK_LIM:WK_P]
+                p = wk[WK_P:WK_A]
+                A = wk[WK_A:WK_R].reshape((MAXE, MAXE))
+                r = wk[WK_R:WK_LCP]
+                mode = iwk[IWK_MODE:IWK_EID]
+                eid = iwk[IWK_EID:IWK_IDX]
+                idx = iwk[IWK_IDX:IWK_TRIAL]
+                trial = iwk[IWK_TRIAL:WK_INT]
+                nact = 0
+                for e, lim_e in ((0, lim_a), (1, lim_b), (2, lim_c), (3, lim_g)):
+                    if lim_e > 0.0:
+                        eid[nact] = e
+                        lim[nact] = lim_e
+                        nact += 1
+                for a in range(nact):
                     ea = eid[a]
                     if ea == 0:
-                        mode[a] = md0
-                        v0[a] = rc * u1 + sl * u2
+                        mode[a] = mode_a
+                        v0[a] = rc * dq + sl * va
                     elif ea == 1:
-                        mode[a] = md1
-                        v0[a] = rc * u1 + sl * u3
+                        mode[a] = mode_b
+                        v0[a] = rc * dq + sl * vb
                     elif ea == 2:
-                        mode[a] = md2
-                        v0[a] = u1
+                        mode[a] = mode_c
+                        v0[a] = dq
                     else:
-                        mode[a] = md3
-                        v0[a] = u2
-                    for b in range(n):
-                        W[a, b] = wtab[4 * ea + eid[b]]
-                if not _solve_free(W, v0, lim, mode, n, p, A, r, idx):
+                        mode[a] = mode_g
+                        v0[a] = va
+                    for b in range(nact):
+                        W[a, b] = w_table[4 * ea + eid[b]]
+                if not _solve_free(W, v0, lim, mode, nact, p, A, r, idx):
                     nsearch += 1.0
-                    _friction_lcp(W, v0, lim, mode, n, p, A, r, idx, trial)
-                for a in range(n):
+                    _friction_lcp(W, v0, lim, mode, nact, p, A, r, idx, trial)
+                for a in range(nact):
                     ea = eid[a]
                     if ea == 0:
-                        md0 = mode[a]
-                        pa = p[a]
+                        mode_a = mode[a]
+                        imp_a = p[a]
                     elif ea == 1:
-                        md1 = mode[a]
-                        pb = p[a]
+                        mode_b = mode[a]
+                        imp_b = p[a]
                     elif ea == 2:
-                        md2 = mode[a]
-                        pc = p[a]
+                        mode_c = mode[a]
+                        imp_c = p[a]
                     else:
-                        md3 = mode[a]
-                        pg = p[a]
-            if a_only:
-                u1 += pa * w02
-                u2 += pa * w03
-            elif n > 0:   # element by element, in element order (adding 0 changes nothing)
-                u1 += rc * pa * mi1
-                u2 += sl * pa * mi2
-                u1 += rc * pb * mi1
-                u3 += sl * pb * mi3
-                u1 += pc * mi1
-                u2 += pg * mi2
+                        mode_g = mode[a]
+                        imp_g = p[a]
+            if a_alone:
+                dq += imp_a * w_ac
+                va += imp_a * w_ag
+            elif nact > 0:   # element by element, in element order (adding 0 changes nothing)
+                dq += rc * imp_a * mi_s
+                va += sl * imp_a * mi_a
+                dq += rc * imp_b * mi_s
+                vb += sl * imp_b * mi_b
+                dq += imp_c * mi_s
+                va += imp_g * mi_a
             if rigid:
-                u0 = u1
-            if not ab:
-                u3 = u2
+                wm = dq
+            if not two_nuts:
+                vb = va
             # positions (symplectic Euler)
-            qm_n = qm + h * u0
-            q_n = q + h * u1
-            xa_n = xa + h * u2
-            xb_n = xb + h * u3
-            # energy bookkeeping with the mid-step velocities (un + u) / 2, summed over the
-            # step and scaled once at its end
-            s0 = un0 + u0
-            s1 = un1 + u1
-            s2 = un2 + u2
-            s3 = un3 + u3
-            a_in += te_n * (s1 if rigid else s0)
-            a_ext += s2
-            dp = cs * un1 * s1 + cx * un2 * s2
+            qm_new = qm + h * wm
+            q_new = q + h * dq
+            xa_new = xa + h * va
+            xb_new = xb + h * vb
+            # energy bookkeeping with the mid-step velocities (start + end) / 2, summed over
+            # the step and scaled once at its end
+            wm_sum = wm0 + wm
+            dq_sum = dq0 + dq
+            va_sum = va0 + va
+            vb_sum = vb0 + vb
+            sum_in += te_new * (dq_sum if rigid else wm_sum)
+            sum_ext += va_sum
+            damp_pow = cs * dq0 * dq_sum + cx * va0 * va_sum
             if not rigid:
-                dp += cc * (un0 - un1) * (s0 - s1)
-            ddm = s2 - rt * s1
-            if ela > 0.0:
-                dp -= (pla - k * ela) * ddm
-            if eua > 0.0:
-                dp += (pua - k * eua) * ddm
-            if pen > 0.0:
-                dp -= (fes_lo - kes * pen) * s2
-            if pen2 > 0.0:
-                dp += (fes_hi - kes * pen2) * s2
-            if ab:
-                ddmb = s3 - rt * s1
-                if elb > 0.0:
-                    dp -= (plb - k * elb) * ddmb
-                if eub > 0.0:
-                    dp += (pub - k * eub) * ddmb
-            a_damp += dp
-            if a_only:
-                a_fric += pa * (rc * s1 + sl * s2)
-            elif n > 0:
-                a_fric += pa * (rc * s1 + sl * s2) + pb * (rc * s1 + sl * s3) + pc * s1 + pg * s2
-            if mcr > 0.0:   # the next collar limit needs this substep's axial thread force
-                faprev = (pla - pua) + (pa / h) * sl
-                if ab:
-                    faprev += (plb - pub) + (pb / h) * sl
-            qm = qm_n
-            q = q_n
-            xa = xa_n
-            xb = xb_n
-            te = te_n
+                damp_pow += cc * (wm0 - dq0) * (wm_sum - dq_sum)
+            gap_sum_a = va_sum - rt * dq_sum
+            if pen_lo_a > 0.0:
+                damp_pow -= (flo_a - k * pen_lo_a) * gap_sum_a
+            if pen_up_a > 0.0:
+                damp_pow += (fup_a - k * pen_up_a) * gap_sum_a
+            if pen_stop_lo > 0.0:
+                damp_pow -= (f_stop_lo - kes * pen_stop_lo) * va_sum
+            if pen_stop_hi > 0.0:
+                damp_pow += (f_stop_hi - kes * pen_stop_hi) * va_sum
+            if two_nuts:
+                gap_sum_b = vb_sum - rt * dq_sum
+                if pen_lo_b > 0.0:
+                    damp_pow -= (flo_b - k * pen_lo_b) * gap_sum_b
+                if pen_up_b > 0.0:
+                    damp_pow += (fup_b - k * pen_up_b) * gap_sum_b
+            sum_damp += damp_pow
+            if a_alone:
+                sum_fric += imp_a * (rc * dq_sum + sl * va_sum)
+            elif nact > 0:
+                sum_fric += (imp_a * (rc * dq_sum + sl * va_sum)
+                             + imp_b * (rc * dq_sum + sl * vb_sum)
+                             + imp_c * dq_sum + imp_g * va_sum)
+            if mu_r_col > 0.0:   # the next collar limit needs this substep's axial thread force
+                faprev = (flo_a - fup_a) + (imp_a / h) * sl
+                if two_nuts:
+                    faprev += (flo_b - fup_b) + (imp_b / h) * sl
+            qm = qm_new
+            q = q_new
+            xa = xa_new
+            xb = xb_new
+            te = te_new
             t += h
-        win += 0.5 * h * a_in
-        wext += 0.5 * h * fext * a_ext
-        edamp += 0.5 * h * a_damp
-        efric -= 0.5 * a_fric
+        win += 0.5 * h * sum_in
+        wext += 0.5 * h * fext * sum_ext
+        edamp += 0.5 * h * sum_damp
+        efric -= 0.5 * sum_fric
         # friction forces [N, N m] and the axial thread force of the last substep
-        ffa = pa / h
-        ffb = pb / h
-        tbr = pc / h
-        fg = pg / h
-        fa_thr = (pla - pua) + ffa * sl
-        if ab:
-            fa_thr += (plb - pub) + ffb * sl
+        ff_a = imp_a / h
+        ff_b = imp_b / h
+        t_br = imp_c / h
+        f_g = imp_g / h
+        fa_thr = (flo_a - fup_a) + ff_a * sl
+        if two_nuts:
+            fa_thr += (flo_b - fup_b) + ff_b * sl
         faprev = fa_thr
         # A non-finite value in a position, velocity or the motor torque stays non-finite
         # in every later substep (each is updated as x + increment), so one check per step
         # finds it; S and out are then left as they were at the start of the step.
         if not (math.isfinite(qm) and math.isfinite(q) and math.isfinite(xa) and math.isfinite(xb)
-                and math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2)
-                and math.isfinite(u3) and math.isfinite(te)):
+                and math.isfinite(wm) and math.isfinite(dq) and math.isfinite(va)
+                and math.isfinite(vb) and math.isfinite(te)):
             return i
         # write the state back once
         S[S_QM] = qm
-        S[S_WM] = u0
+        S[S_WM] = wm
         S[S_Q] = q
-        S[S_DQ] = u1
+        S[S_DQ] = dq
         S[S_XA] = xa
-        S[S_VA] = u2
+        S[S_VA] = va
         S[S_XB] = xb
-        S[S_VB] = u3
+        S[S_VB] = vb
         S[S_TE] = te
         S[S_T] = t
         S[S_WIN] = win
@@ -762,29 +537,29 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
         S[S_EFRIC] = efric
         S[S_EDAMP] = edamp
         S[S_FAPREV] = faprev
-        S[S_MODE0] = md0
-        S[S_MODE0 + 1] = md1
-        S[S_MODE0 + 2] = md2
-        S[S_MODE0 + 3] = md3
+        S[S_MODE0] = mode_a
+        S[S_MODE0 + 1] = mode_b
+        S[S_MODE0 + 2] = mode_c
+        S[S_MODE0 + 3] = mode_g
         S[S_NSEARCH] = nsearch
         # outputs of the last substep
-        out[O_NLA] = pla / cl
-        out[O_NUA] = pua / cl
-        out[O_NLB] = plb / cl
-        out[O_NUB] = pub / cl
-        out[O_FFA] = ffa
-        out[O_FFB] = ffb
-        out[O_VSA] = rc * u1 + sl * u2
-        out[O_VSB] = rc * u1 + sl * u3 if ab else 0.0
-        out[O_STICKA] = -1.0 if pla + pua <= 0.0 else (1.0 if md0 == 0 else 0.0)
-        out[O_STICKB] = -1.0 if plb + pub <= 0.0 else (1.0 if md1 == 0 else 0.0)
-        out[O_CONTA] = 1.0 if pla > 0.0 else (-1.0 if pua > 0.0 else 0.0)
-        out[O_CONTB] = 1.0 if plb > 0.0 else (-1.0 if pub > 0.0 else 0.0)
+        out[O_NLA] = flo_a / cl
+        out[O_NUA] = fup_a / cl
+        out[O_NLB] = flo_b / cl
+        out[O_NUB] = fup_b / cl
+        out[O_FFA] = ff_a
+        out[O_FFB] = ff_b
+        out[O_VSA] = rc * dq + sl * va
+        out[O_VSB] = rc * dq + sl * vb if two_nuts else 0.0
+        out[O_STICKA] = -1.0 if flo_a + fup_a <= 0.0 else (1.0 if mode_a == 0 else 0.0)
+        out[O_STICKB] = -1.0 if flo_b + fup_b <= 0.0 else (1.0 if mode_b == 0 else 0.0)
+        out[O_CONTA] = 1.0 if flo_a > 0.0 else (-1.0 if fup_a > 0.0 else 0.0)
+        out[O_CONTB] = 1.0 if flo_b > 0.0 else (-1.0 if fup_b > 0.0 else 0.0)
         out[O_FAX] = fa_thr
-        out[O_TTH] = -rt * (pla - pua + plb - pub) + rc * (ffa + ffb)
+        out[O_TTH] = -rt * (flo_a - fup_a + flo_b - fup_b) + rc * (ff_a + ff_b)
         out[O_TE] = te
-        out[O_TBR] = tbr
-        out[O_FG] = fg
+        out[O_TBR] = t_br
+        out[O_FG] = f_g
         out[O_NSUB] = nsub
         for j in range(REC_STATE):
             rec[i, j] = S[j]
@@ -793,7 +568,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     return torques.shape[0]
 
 
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+@kernel_jit
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
     Advance the state S by exactly dt in nsub equal substeps.
@@ -802,14 +577,14 @@ def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
     became non-finite (S and out are then left as they were before the call).
     """
-    io = wk[WK_IO:WK_IO + 2]
+    io = wk[WK_IO:WK_IO + WK_NIO]
     io[0] = t_cmd
     io[1] = f_in
-    rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_STATE + NO))   # a scratch record row
+    rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_ROW))   # a scratch record row
     return 0 if _steps(P, S, out, io[0:1], io[1:2], dt, nsub, wk, iwk, rec) == 1 else 1
 
 
-@njit(cache=True, error_model='numpy', fastmath=CONTRACT, _nrt=False)
+@kernel_jit
 def run_series(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     """
     Run one step per entry of torques/forces (q sense, N m and N) in one call.
