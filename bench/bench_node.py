@@ -82,8 +82,9 @@ def bare_loop(rate, stats_path):
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
-    from leadscrew_sim.ros.node import (COMMAND_QOS, DeadlineSleeper, make_executor,
-                                        percentiles, STATE_QOS, stamp_msg)
+    from leadscrew_sim.ros.diagnostics import stamp_msg
+    from leadscrew_sim.ros.node import COMMAND_QOS, make_executor, STATE_QOS
+    from leadscrew_sim.ros.timing import DeadlineSleeper, percentiles
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bare_loop')

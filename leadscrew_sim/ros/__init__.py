@@ -1,1 +1,1 @@
-"""The ROS 2 side: the node, its parameters, diagnostics and deadline timing."""
+"""The ROS 2 side: the node, its command intake, parameters, diagnostics and deadline timing."""

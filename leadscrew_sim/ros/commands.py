@@ -1,0 +1,132 @@
+"""
+The node's command intake: raw subscription bytes into a CommandHold, with counters and warnings.
+
+The rules (validation, zero-order hold, timeout) are those of
+:class:`leadscrew_sim.core.commands.CommandHold`, shared with ``resim``; this
+module decodes the messages, counts accepted, rejected and ignored commands
+and logs (throttled) what the node refuses or replaces.
+"""
+import time
+
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from ..core.commands import ACCEPTED, CommandHold, IGNORED
+from ..io.cdr import decode_float64, DecodeError
+
+NS = 1_000_000_000
+
+__all__ = ['CommandInputs', 'float64_value']
+
+
+def float64_value(data):
+    """
+    Return the value of a serialized std_msgs/Float64 (raw subscription bytes).
+
+    Decodes the CDR directly (about 1 us instead of 10 us for
+    deserialize_message), falling back to rclpy for any other encapsulation.
+    """
+    try:
+        return decode_float64(data)
+    except DecodeError:
+        return deserialize_message(data, Float64).data
+
+
+class CommandInputs:
+    """
+    The commands of the node: the hold, the counters and the log messages about them.
+
+    Times are integer nanoseconds in the node's time base of command ages
+    (wall clock in realtime mode, sim time otherwise); ``cmd_wall`` is the
+    monotonic time of the last accepted torque command (None: none yet).
+    """
+
+    def __init__(self, logger, joint_prefix, timeout):
+        """Start with no command; ``timeout`` [s] as the parameter command_timeout."""
+        self.hold = CommandHold(joint_prefix, timeout)
+        self._log = logger
+        self.cmd_wall = None
+        self.rejected = 0                  # malformed or non-finite commands
+        self.ignored = 0                   # joint_commands without our joint
+        self.commands = 0
+        self._warned_no_joint = False
+
+    def set_joint_prefix(self, joint_prefix):
+        """Follow a run-time change of joint_prefix."""
+        self.hold.screw_joint = joint_prefix + 'screw_joint'
+
+    def set_timeout(self, timeout):
+        """Follow a run-time change of command_timeout [s]."""
+        self.hold.timeout = float(timeout)
+
+    def reset(self):
+        """Forget every command (``~/reset``); the counters stay."""
+        self.hold.reset()
+        self.cmd_wall = None
+
+    def _reject(self, what):
+        self.rejected += 1
+        self._log.warn(f'rejected {what} ({self.rejected} so far)', throttle_duration_sec=1.0)
+
+    def _accepted(self, was_stale):
+        """Count an accepted torque command; ``was_stale``: the hold was stale before it."""
+        self.cmd_wall = time.monotonic_ns()
+        self.commands += 1
+        if was_stale:
+            self._log.info('torque command resumed')
+
+    def torque_command(self, data, time_ns):
+        """Take a serialized std_msgs/Float64 motor torque [N m] received at time_ns."""
+        was_stale = self.hold.stale
+        reason = self.hold.torque_command(float64_value(data), time_ns)
+        if reason:
+            self._reject(reason)
+        else:
+            self._accepted(was_stale)
+
+    def joint_commands(self, data, time_ns):
+        """Take a serialized sensor_msgs/JointState received at time_ns."""
+        msg = deserialize_message(data, JointState)
+        was_stale = self.hold.stale
+        result, reason = self.hold.joint_commands(msg.name, msg.effort, time_ns)
+        if result == ACCEPTED:
+            self._accepted(was_stale)
+        elif result == IGNORED:
+            self.ignored += 1
+            if not self._warned_no_joint:
+                self._warned_no_joint = True
+                self._log.warn(f'joint_commands without joint {self.hold.screw_joint!r} '
+                               f'ignored (names {list(msg.name)[:8]}); warning once')
+        else:
+            self._reject(reason)
+
+    def external_force(self, data):
+        """Take a serialized std_msgs/Float64 external force [N]."""
+        reason = self.hold.external_force(float64_value(data))
+        if reason:
+            self._reject(reason)
+
+    def applied_torque(self, age_now):
+        """Return the torque of the step at ``age_now``: the held one, or 0 once stale."""
+        hold = self.hold
+        was_stale, hold.stale = hold.stale, False
+        torque = hold.applied_torque(age_now)
+        if not hold.stale:
+            # Not timed out at this step (e.g. command_timeout raised or set to 0):
+            # the flag stays as it was until the next command or reset.
+            hold.stale = was_stale
+        elif not was_stale:
+            self._log.warn(f'torque command older than command_timeout {hold.timeout:g} s: '
+                           'applying 0 N m')
+        else:
+            self._log.warn('torque command stale: applying 0 N m', throttle_duration_sec=5.0)
+        return torque
+
+    def age(self, wall_now, sim_now=None):
+        """Return the age [s] of the last torque command as diagnostics show it."""
+        if self.cmd_wall is None:
+            return 'no command yet'
+        if sim_now is None:
+            return f'{(wall_now - self.cmd_wall) / NS:.3f}'
+        return f'{(sim_now - self.hold.cmd_time) / NS:.3f}'

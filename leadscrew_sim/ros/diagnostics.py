@@ -1,0 +1,92 @@
+"""The node's once-a-second ``diagnostics``: the axis, its loop and its recording."""
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from ..core import geometry
+
+NS = 1_000_000_000
+
+__all__ = ['diagnostic_array', 'stamp_msg']
+
+
+def stamp_msg(stamp_ns):
+    """Return the builtin_interfaces/Time of an integer nanosecond time."""
+    sec, nsec = divmod(int(stamp_ns), NS)
+    return TimeMsg(sec=sec, nanosec=nsec)
+
+
+def _us(ns):
+    return '' if ns is None else f'{ns / 1000.0:.1f}'
+
+
+def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, target_rate,
+                     command_age, stale, loop, lateness, counts, recorder):
+    """
+    Return the DiagnosticArray of one window.
+
+    Parameters
+    ----------
+    name, preset : str
+        Node name and preset (the status name and hardware id).
+    params, model : ScrewParams, LeadScrewModel
+        The physics and its current state.
+    clock_mode : str
+        Clock mode of the node.
+    sim_time_ns : int
+        Current sim time (also the header stamp).
+    target_rate : float
+        update_rate [Hz].
+    command_age : str
+        Age of the last torque command [s], formatted, or ``'no command yet'``.
+    stale : bool
+        The torque command is stale (0 N m applied).
+    loop : leadscrew_sim.ros.timing.LoopStats
+        Loop counters, ``achieved_rate`` of the window just closed.
+    lateness : dict
+        Lateness percentiles of that window [ns] (``p50``, ``p99``, ``max``).
+    counts : tuple of int
+        (commands, rejected commands, ignored commands).
+    recorder : leadscrew_sim.io.recorder.Recorder
+        The recorder (``status()``, ``active``, ``dropped``).
+
+    """
+    p, m = params, model
+    o = m.output()
+    rec_file, rec_bytes, rec_msgs, rec_err = recorder.status()
+    eff = geometry.efficiency(p.mu_k * p.thread_factor, p.lead_angle)
+    level, msg = DiagnosticStatus.OK, 'running'
+    if stale:
+        level, msg = DiagnosticStatus.WARN, 'torque command stale: applying 0 N m'
+    if rec_err:
+        level, msg = DiagnosticStatus.WARN, f'recording: {rec_err}'
+    if m.fault:
+        level, msg = DiagnosticStatus.ERROR, f'simulation fault: {m.fault}'
+    commands, rejected, ignored = counts
+    values = [
+        ('contact', o.contact_name), ('thread', 'stick' if o.stuck else 'slip'),
+        ('self_locking', str(p.self_locking)), ('efficiency', f'{eff:.4f}'),
+        ('nut_position_m', f'{o.nut_position:.6f}'),
+        ('applied_torque_Nm', f'{o.motor_torque:.6g}'),
+        ('axial_force_N', f'{o.axial_force:.6g}'),
+        ('command_age_s', command_age), ('command_stale', str(stale)),
+        ('clock_mode', clock_mode), ('sim_time_s', f'{sim_time_ns / NS:.6f}'),
+        ('achieved_rate_hz', f'{loop.achieved_rate:.2f}'),
+        ('target_rate_hz', f'{target_rate:g}'),
+        ('lateness_p50_us', _us(lateness['p50'])), ('lateness_p99_us', _us(lateness['p99'])),
+        ('lateness_max_us', _us(lateness['max'])),
+        ('overruns', str(loop.overruns)), ('skipped_steps', str(loop.skipped_steps)),
+        ('late_ticks', str(loop.late_ticks)), ('catchup_steps', str(loop.catchup_steps)),
+        ('commands', str(commands)), ('rejected_commands', str(rejected)),
+        ('ignored_commands', str(ignored)),
+        ('substeps', str(m.nsub)),
+        ('recording', str(recorder.active)), ('recording_file', rec_file),
+        ('recording_bytes', str(rec_bytes)), ('recording_messages', str(rec_msgs)),
+        ('recording_error', rec_err or ''),
+        ('recording_dropped', str(recorder.dropped)),
+    ]
+    status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
+                              hardware_id=f'leadscrew_sim/{preset}',
+                              values=[KeyValue(key=k, value=v) for k, v in values])
+    arr = DiagnosticArray(status=[status])
+    arr.header.stamp = stamp_msg(sim_time_ns)
+    return arr

@@ -1,0 +1,127 @@
+"""
+The node's ROS parameters: the physics (ScrewParams) and the run settings (RunSettings).
+
+Both are declared from their core schema (:mod:`leadscrew_sim.core.fields`):
+the unit goes into the description, the range into the descriptor, and the
+read-only flag from the run settings' schema and :data:`READ_ONLY_PHYSICS`.
+Start-up overrides and run-time changes are coerced and checked once, by
+``ScrewParams.from_dict`` and ``RunSettings.from_dict``; a batch of changes
+is taken whole or refused whole.
+"""
+import collections
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+from ..core import load_preset, ParameterError, ScrewParams
+from ..core.settings import RunSettings
+
+__all__ = ['DEFAULT_PRESET', 'declare_parameters', 'descriptor', 'ParameterChange',
+           'READ_ONLY_PHYSICS', 'StartupError', 'validate_changes']
+
+DEFAULT_PRESET = 'tr12x3'
+
+#: ScrewParams fields that change the meaning of the state: read-only at run time.
+READ_ONLY_PHYSICS = frozenset((
+    'thread_form', 'hand', 'major_diameter', 'pitch', 'starts', 'pitch_diameter',
+    'anti_backlash', 'initial_position'))
+
+#: Parameters the node knows besides the physics and the run settings.
+OTHER_PARAMETERS = frozenset(('preset', 'use_sim_time', 'start_type_description_service'))
+
+
+class StartupError(Exception):
+    """An invalid configuration found while the node starts (exit code 2)."""
+
+
+def descriptor(name, value, md, read_only):
+    """Return the ParameterDescriptor of a field with metadata ``md`` and current ``value``."""
+    unit, lo, hi, choices = md['unit'], md['lo'], md['hi'], md.get('choices')
+    text = md['description'] if unit in ('-', '') else f'{md["description"]} [{unit}]'
+    if choices:
+        text += f' (one of: {", ".join(choices)})'
+    d = ParameterDescriptor(name=name, description=text, read_only=read_only)
+    if lo is not None and hi is not None and math.isfinite(lo) and math.isfinite(hi):
+        if isinstance(value, bool):
+            pass
+        elif isinstance(value, int):
+            d.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=0)]
+        elif isinstance(value, float):
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(lo), to_value=float(hi), step=0.0)]
+    return d
+
+
+def _overrides(node):
+    """Return {name: value} of the node's start-up overrides (``-p name:=value``)."""
+    return {name: p.value for name, p in getattr(node, '_parameter_overrides', {}).items()
+            if p.value is not None}
+
+
+def _load_base(preset):
+    if not isinstance(preset, str):
+        raise StartupError(f"parameter 'preset': {preset!r} is not a string")
+    try:
+        return load_preset(preset)
+    except ParameterError as exc:
+        raise StartupError(str(exc)) from None
+    except (OSError, ValueError) as exc:
+        raise StartupError(f"parameter 'preset': cannot read {preset!r}: {exc}") from None
+
+
+def _declare(node, name, value, md, read_only):
+    node.declare_parameter(name, value, descriptor(name, value, md, read_only),
+                           ignore_override=True)
+
+
+def declare_parameters(node):
+    """
+    Declare every parameter of ``node`` from its overrides; return (preset, params, settings).
+
+    Raises StartupError for an unreadable preset or an invalid override;
+    warns about overrides of unknown parameters.
+    """
+    overrides = _overrides(node)
+    preset = overrides.get('preset', DEFAULT_PRESET)
+    base = _load_base(preset)
+    node.declare_parameter('preset', preset, ParameterDescriptor(
+        name='preset', read_only=True,
+        description='preset name (config/<name>.yaml) or YAML path giving the defaults '
+                    'of the physical parameters'), ignore_override=True)
+    physics, run = ScrewParams.field_info(), RunSettings.field_info()
+    try:
+        params = ScrewParams.from_dict(
+            {k: overrides[k] for k in physics if k in overrides}, base=base)
+        settings = RunSettings.from_dict({k: overrides[k] for k in run if k in overrides})
+    except ParameterError as exc:
+        raise StartupError(str(exc)) from None
+    for name, (_typ, _default, md) in physics.items():
+        _declare(node, name, getattr(params, name), md, name in READ_ONLY_PHYSICS)
+    for name, (_typ, _default, md) in run.items():
+        _declare(node, name, getattr(settings, name), md, md['read_only'])
+    for name in getattr(node, '_parameter_overrides', {}):
+        if name not in physics and name not in run and name not in OTHER_PARAMETERS:
+            node.get_logger().warn(f"ignoring unknown parameter '{name}'")
+    return preset, params, settings
+
+
+#: A validated batch of run-time changes: ``physics`` and ``run`` the values as set, by
+#: name; ``params`` and ``settings`` the new ScrewParams and RunSettings (None if the
+#: batch changes none of them).
+ParameterChange = collections.namedtuple('ParameterChange', 'physics run params settings')
+
+
+def validate_changes(parameters, params, settings):
+    """
+    Validate a batch of rclpy Parameters against the current params and settings.
+
+    Returns a :class:`ParameterChange`; raises ParameterError for the first
+    invalid value (the batch is then refused whole). Other parameters
+    (``use_sim_time``) pass through untouched.
+    """
+    physics_names, run_names = ScrewParams.field_info(), RunSettings.field_info()
+    physics = {p.name: p.value for p in parameters if p.name in physics_names}
+    run = {p.name: p.value for p in parameters if p.name in run_names}
+    new_params = ScrewParams.from_dict(physics, base=params) if physics else None
+    new_settings = RunSettings.from_dict(run, base=settings) if run else None
+    return ParameterChange(physics, run, new_params, new_settings)
