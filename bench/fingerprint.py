@@ -103,7 +103,7 @@ def main():
             for drive, tq in drives.items():
                 print(f'{name:<14} {drive:<6} model    {model_hash(p, tq)}', flush=True)
             csv = out / f'{name}_track.csv'
-            csv.write_text(''.join(f'{k * 1e-3!r},{v!r}\n' for k, v in enumerate(track)))
+            csv.write_text(''.join(f'{k * 1e-3!r},{float(v)!r}\n' for k, v in enumerate(track)))
             sim_args = dict(hold=['--torque', '0'], track=['--torque-csv', str(csv)],
                             sine=['--profile', 'sine'], move=['--profile', 'move'])
             for drive, extra in sim_args.items():
