@@ -12,8 +12,8 @@ import sys
 
 from leadscrew_sim.io.cdr import encode_float64
 from leadscrew_sim.io.recorder import FRAME, Recorder
+from leadscrew_sim.io.session import StorageOptions
 from mcap.reader import make_reader
-import pytest
 
 #: Top-level modules the recorder process must never import.
 FORBIDDEN = ('rclpy', 'rosidl_runtime_py', 'std_msgs', 'sensor_msgs', 'geometry_msgs',
@@ -61,8 +61,7 @@ def test_import_of_recorder_loads_no_ros():
 
 
 def test_recording_child_writes_without_ros(tmp_path):
-    opening = dict(op='open', directory=str(tmp_path), prefix='rec', split_bytes=0,
-                   split_seconds=0.0, flush_interval=1.0,
+    opening = dict(op='open', options=StorageOptions(str(tmp_path), 'rec').to_dict(),
                    channels=[['/torque_command', 'std_msgs/msg/Float64', None, True]],
                    metadata={'leadscrew_sim_parameters': {'preset': 'tr12x3'}})
     data = frame(0, opening) + b''.join(
@@ -76,16 +75,13 @@ def test_recording_child_writes_without_ros(tmp_path):
     with open(status['path'], 'rb') as f:
         msgs = list(make_reader(f).iter_messages())
     assert [m.log_time for _s, _c, m in msgs] == [k * 1_000_000 for k in range(5)]
-    assert not imported & (set(FORBIDDEN) - set(JIT)), sorted(imported & set(FORBIDDEN))
-    if imported & set(JIT):
-        pytest.xfail('the recording session imports numba: leadscrew_sim.io.session imports '
-                     'leadscrew_sim.core, whose __init__ imports the model eagerly')
+    assert not imported & set(FORBIDDEN), sorted(imported & set(FORBIDDEN))
 
 
 def test_parent_side_with_a_plain_logger(tmp_path, caplog):
     rec = Recorder(logging.getLogger('test_recorder'))
     channels = {'/torque_command': ('std_msgs/msg/Float64', None, True)}
-    assert rec.start(tmp_path, 'parent', 0, 0.0, 1.0, channels, {'preset': 'tr12x3'})
+    assert rec.start(StorageOptions(str(tmp_path), 'parent'), channels, {'preset': 'tr12x3'})
     assert rec.active
     for k in range(10):
         rec.write('/torque_command', encode_float64(float(k)), k * 1_000_000)

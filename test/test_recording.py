@@ -12,7 +12,8 @@ from ament_index_python.packages import get_package_share_directory
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
 from leadscrew_sim.io.msgdefs import cdr_length, ros2msg_definition
-from leadscrew_sim.io.session import McapRecorder, recover, RecordingSession
+from leadscrew_sim.io.mcap_file import McapRecorder
+from leadscrew_sim.io.session import recover, RecordingSession, StorageOptions
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
@@ -193,7 +194,7 @@ CHILD = textwrap.dedent('''
     import signal, sys, time
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64
-    from leadscrew_sim.io.session import McapRecorder
+    from leadscrew_sim.io.mcap_file import McapRecorder
     path, mode, flush = sys.argv[1], sys.argv[2], float(sys.argv[3])
     rec = McapRecorder(path, flush_interval=flush)
     cid = rec.add_channel('/x', 'std_msgs/msg/Float64')
@@ -284,7 +285,7 @@ def test_io_errors_set_error_and_never_raise(tmp_path):
         rec.flush()
         rec.close()
         assert rec.error and words in rec.error.lower() and '\n' not in rec.error, rec.error
-    session = RecordingSession(tmp_path / 'afile')
+    session = RecordingSession(StorageOptions(tmp_path / 'afile'))
     cid = session.add_channel('/x', 'std_msgs/msg/Float64')
     session.write(cid, data, 1)
     session.close()
@@ -292,8 +293,9 @@ def test_io_errors_set_error_and_never_raise(tmp_path):
 
 
 def test_split_by_size_gives_complete_files(tmp_path):
-    session = RecordingSession(tmp_path / 'runs', prefix='lab-1', split_bytes=16384,
-                               flush_interval=10.0, metadata={'params': {'preset': 'p'}})
+    session = RecordingSession(StorageOptions(tmp_path / 'runs', prefix='lab-1', split_bytes=16384,
+                                              flush_interval=10.0),
+                               metadata={'params': {'preset': 'p'}})
     ids = {'/never': session.add_channel('/never', 'std_msgs/msg/Float64')}   # no messages
     total = 1500
     for i in range(total // 4 - 1):
@@ -325,7 +327,7 @@ def test_split_by_size_gives_complete_files(tmp_path):
 
 
 def test_split_by_log_time(tmp_path):
-    session = RecordingSession(tmp_path, split_seconds=2.0)
+    session = RecordingSession(StorageOptions(tmp_path, split_seconds=2.0))
     cid = session.add_channel('/x', 'std_msgs/msg/Float64')
     for k in range(1000):                             # 10 s of log time at 100 Hz
         session.write(cid, serialize_message(Float64(data=float(k))), 10**7 * k)
@@ -353,5 +355,5 @@ def test_recover_of_complete_file_keeps_everything(tmp_path):
 @pytest.mark.parametrize('prefix', ['../x', 'a/b', '', 'a' * 65, 'a b', '.hidden'])
 def test_prefix_validation(tmp_path, prefix):
     with pytest.raises(ValueError, match='record_prefix'):
-        RecordingSession(tmp_path, prefix=prefix)
+        RecordingSession(StorageOptions(tmp_path, prefix=prefix))
     assert list(tmp_path.iterdir()) == []

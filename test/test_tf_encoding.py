@@ -13,7 +13,8 @@ import random
 import subprocess
 
 from leadscrew_sim.io import msgdefs, tf
-from leadscrew_sim.io.session import McapRecorder, qos_profile_yaml
+from leadscrew_sim.io.mcap_file import McapRecorder
+from leadscrew_sim.io.qos import qos_profile_yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import numpy as np

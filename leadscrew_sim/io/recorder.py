@@ -73,17 +73,26 @@ class Recorder:
         """Return True while a recording is open."""
         return self._fd is not None
 
-    def start(self, directory, prefix, split_bytes, split_seconds, flush_interval,
-              channels, metadata):
-        """Start a child with channels {topic: (type, qos yaml, trim)} and a metadata record."""
+    def start(self, options, channels, metadata):
+        """
+        Start a child process recording a new session.
+
+        Parameters
+        ----------
+        options : leadscrew_sim.io.session.StorageOptions
+            Where and how to record.
+        channels : dict
+            Topic -> (type name, offered QoS YAML or None, trim).
+        metadata : dict
+            The parameters record, ``{str: str}``.
+
+        """
         self.stop(wait=False)
         self.error = None
         self._status = {}
         self.dropped = 0
         self._at_time, self._at_count = None, 0
-        config = dict(directory=str(directory), prefix=prefix, split_bytes=int(split_bytes),
-                      split_seconds=float(split_seconds),
-                      flush_interval=float(flush_interval),
+        config = dict(options=options.to_dict(),
                       channels=[[t, typ, qos, trim] for t, (typ, qos, trim) in channels.items()],
                       metadata={'leadscrew_sim_parameters': metadata})
         try:
@@ -291,11 +300,9 @@ def recorder_child():
                     continue
                 ctl = json.loads(data)
                 if ctl['op'] == 'open':
-                    from .session import RecordingSession
-                    session = RecordingSession(
-                        ctl['directory'], prefix=ctl['prefix'],
-                        split_bytes=ctl['split_bytes'], split_seconds=ctl['split_seconds'],
-                        flush_interval=ctl['flush_interval'], metadata=ctl['metadata'])
+                    from .session import RecordingSession, StorageOptions
+                    session = RecordingSession(StorageOptions(**ctl['options']),
+                                               metadata=ctl['metadata'])
                     for i, (topic, typ, qos, trim) in enumerate(ctl['channels']):
                         ids[i + 1] = session.add_channel(topic, typ, qos, trim)
                     report()

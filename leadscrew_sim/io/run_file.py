@@ -60,7 +60,8 @@ class RunWriter:
 
     def __init__(self, path, joint_prefix='', namespace='/', clock=False):
         """Open the file and register the node's channels (resolved names)."""
-        from .session import McapRecorder, qos_profile_yaml
+        from .mcap_file import McapRecorder
+        from .qos import qos_profile_yaml
         self.path = str(path)
         try:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)

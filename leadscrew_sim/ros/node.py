@@ -50,6 +50,7 @@ from ..core.faults import SimulationFault
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
+from ..io.session import StorageOptions
 from ..io.topics import TOPICS
 from .commands import CommandInputs
 from .diagnostics import diagnostic_array
@@ -216,9 +217,7 @@ class LeadScrewSimNode(Node):
                 if topic in self._rec_topic}
 
     def _start_recording(self):
-        s = self.settings
-        return self.recorder.start(s.record_dir, s.record_prefix, s.record_split_bytes,
-                                   s.record_split_seconds, s.record_flush_interval,
+        return self.recorder.start(StorageOptions.from_run_settings(self.settings),
                                    self.recording_channels(), self.all_parameter_values())
 
     # -- command callbacks -----------------------------------------------------
