@@ -10,7 +10,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.mark.flake8
 @pytest.mark.linter
 def test_flake8():
-    paths = [str(REPO / p) for p in ('leadscrew_sim', 'test', 'bench', 'setup.py')]
+    paths = [str(REPO / p) for p in ('leadscrew_sim', 'test', 'bench', 'launch', 'setup.py')]
     rc, errors = main_with_errors(argv=paths)
     assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + \
         '\n'.join(errors)
