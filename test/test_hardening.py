@@ -1,5 +1,5 @@
 """
-Hardening (issue 6): the node as a real process under hostile or extreme input.
+Hardening: the node as a real process under hostile or extreme input.
 
 Every test starts ``python -m leadscrew_sim.node`` (conftest ``run_exe``) on
 the session's isolated DDS domain and talks to it over real middleware; no

@@ -1,5 +1,5 @@
 """
-Recordings made by the running node (issue 5), read back by independent readers.
+Recordings made by the running node, read back by independent readers.
 
 The node runs as a real process on the test session's isolated DDS domain
 (conftest); a live subscriber in the test process sees what the node

@@ -1,7 +1,7 @@
 """
 ROS 2 node ``leadscrew_sim_node``: the lead screw axis on the ROS graph.
 
-Contract: /work/shared/design/interfaces.md. Commands (``torque_command``,
+Interfaces: doc/interfaces.md. Commands (``torque_command``,
 ``joint_commands``, ``external_force``) are zero-order held; every tick the
 model advances by exactly one fixed step ``dt = 1 / update_rate`` and the
 states (``joint_states``, ``nut_position``, ``thread_force``) are published
