@@ -230,12 +230,12 @@ class Resim:
 
 def _states(o, stamp, writer, enc):
     """Return the state values of StepOutput ``o``; write them at ``stamp`` [ns] if asked."""
-    js, x, wr = M.StateEncoder.values(o)
+    values = M.StateEncoder.values(o)
     if writer is not None:
-        writer.write(writer.ids['joint_states'], enc.joint_states(stamp, js), stamp)
-        writer.write(writer.ids['nut_position'], enc.nut_position(None, x), stamp)
-        writer.write(writer.ids['thread_force'], enc.thread_force(stamp, wr), stamp)
-    return js, x[0], wr
+        for topic, data in enc.tick(stamp, values):
+            writer.write(writer.ids[topic], data, stamp)
+    angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = values
+    return (angle, x, w_screw, v_nut, tq_motor, f_ax), x, (f_ax, tq_thread)
 
 
 _BITS = struct.Struct('<d').pack

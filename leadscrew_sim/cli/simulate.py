@@ -15,7 +15,7 @@ import numpy as np
 
 from .args import CliError, DEFAULT_PRESET, load_params, NS, parse_sets, Progress
 from .sources import make_force_source, make_torque_source
-from ..io import cdr as C
+from ..io import cdr as C, messages as M
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter
 
 HELP = 'run the model offline and write an MCAP file'
@@ -25,8 +25,7 @@ HELP = 'run the model offline and write an MCAP file'
 BLOCK_TICKS = 1000
 
 #: The state columns of a block, named as in the result of ``model.run``.
-COLUMNS = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity', 'motor_torque',
-           'axial_force', 'thread_torque')
+COLUMNS = M.TICK_VALUES
 
 
 def add_arguments(p):
@@ -179,14 +178,11 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
     enc, ids = w.enc, w.ids
     t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
     t_state = t_cmd + dt_ns
-    angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = cols
-    rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]),
-            enc.joint_states.rows(t_state, [angle, x, w_screw, v_nut, tq_motor, f_ax]),
-            enc.nut_position.rows(None, [x]),
-            enc.thread_force.rows(t_state, [f_ax, tq_thread])]
-    times = [t_cmd, t_state, t_state, t_state]
-    chans = [ids['torque_command'], ids['joint_states'], ids['nut_position'],
-             ids['thread_force']]
+    states = enc.rows(t_state, cols)
+    rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)])]
+    rows += [r for _topic, r in states]
+    times = [t_cmd] + [t_state] * len(states)
+    chans = [ids['torque_command']] + [ids[topic] for topic, _r in states]
     if clock:
         rows.append(enc.clock.rows(t_state, []))
         times.append(t_state)

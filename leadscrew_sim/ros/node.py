@@ -198,11 +198,8 @@ class LeadScrewSimNode(Node):
         self._pace_reset = True
 
     def _make_serializers(self):
-        enc = StateEncoder(self.settings.joint_prefix)
-        self._ser_js = enc.joint_states
-        self._ser_x = enc.nut_position
-        self._ser_wr = enc.thread_force
-        self._ser_clock = enc.clock
+        self._encoder = StateEncoder(self.settings.joint_prefix)
+        self._ser_clock = self._encoder.clock
 
     def recording_channels(self):
         """
@@ -286,11 +283,8 @@ class LeadScrewSimNode(Node):
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
 
     def _publish_states(self):
-        angle, x, omega, v, torque, force, thread_torque = self.model.joint_values()
-        stamp = self._sim_now()
-        self._emit('joint_states', self._ser_js(stamp, (angle, x, omega, v, torque, force)))
-        self._emit('nut_position', self._ser_x(None, (x,)))
-        self._emit('thread_force', self._ser_wr(stamp, (force, thread_torque)))
+        for topic, data in self._encoder.tick(self._sim_now(), self.model.joint_values()):
+            self._emit(topic, data)
 
     def _emit(self, topic, data):
         """Publish the serialized state ``data`` on ``topic`` and record it."""
