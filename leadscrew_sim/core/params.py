@@ -22,13 +22,15 @@ class ScrewParams(Schema):
     # Geometry (physics.md section 1)
     thread_form: str = field('trapezoidal', '-', 'thread form; sets the axial half-angle psi_a '
                              '(square 0, acme/stub_acme 14.5 deg, trapezoidal 15 deg)',
-                             choices=tuple(geometry.THREAD_HALF_ANGLES))
+                             choices=tuple(geometry.THREAD_HALF_ANGLES), read_only=True)
     hand: str = field('right', '-', 'thread hand; right: positive screw rotation moves the nut '
-                      'toward -x', choices=('right', 'left'))
-    major_diameter: float = field(0.012, 'm', 'nominal (major) diameter D', 1e-4, 1.0)
-    pitch: float = field(0.003, 'm', 'thread pitch p', 1e-5, 0.1)
-    starts: int = field(1, '-', 'number of thread starts n_s', 1, 20)
-    pitch_diameter: float = field(0.0, 'm', 'pitch (mean) diameter d_m; 0 means D - p/2', 0.0, 1.0)
+                      'toward -x', choices=('right', 'left'), read_only=True)
+    major_diameter: float = field(0.012, 'm', 'nominal (major) diameter D', 1e-4, 1.0,
+                                  read_only=True)
+    pitch: float = field(0.003, 'm', 'thread pitch p', 1e-5, 0.1, read_only=True)
+    starts: int = field(1, '-', 'number of thread starts n_s', 1, 20, read_only=True)
+    pitch_diameter: float = field(0.0, 'm', 'pitch (mean) diameter d_m; 0 means D - p/2',
+                                  0.0, 1.0, read_only=True)
     # Friction (section 6)
     mu_s: float = field(0.2, '-', 'static thread friction coefficient', 0.0, 2.0)
     mu_k: float = field(0.15, '-', 'kinetic (Coulomb) thread friction coefficient', 0.0, 2.0)
@@ -70,15 +72,26 @@ class ScrewParams(Schema):
     torque_lag: float = field(0.0, 's', 'motor torque first-order lag tau_e; 0 means none',
                               0.0, 10.0)
     # Anti-backlash split nut (section 7)
-    anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring')
+    anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring',
+                                read_only=True)
     preload_force: float = field(0.0, 'N', 'anti-backlash preload F_p', 0.0, 1e6)
     preload_stiffness: float = field(1e5, 'N/m', 'anti-backlash spring stiffness k_p',
                                      1.0, 1e10)
     second_nut_mass: float = field(0.01, 'kg', 'mass of the second half-nut m_b', 1e-6, 1e4)
     # Initial state and integration (section 8)
-    initial_position: float = field(0.0, 'm', 'initial nut position x_0', -100.0, 100.0)
+    initial_position: float = field(0.0, 'm', 'initial nut position x_0', -100.0, 100.0,
+                                    read_only=True)
     substep: float = field(0.0, 's', 'integration substep upper bound; 0 means automatic '
                            '(0.2 / omega_max of the stiffest mode)', 0.0, 1e-2)
+
+    def advisories(self):
+        """Return warnings about a valid but unusual set (a list of one-line strings)."""
+        notes = []
+        if self.mu_k > self.mu_s:
+            notes.append(f"mu_k {self.mu_k!r} exceeds mu_s {self.mu_s!r}: the thread friction "
+                         'rises from standstill to sliding (a negative Stribeck drop); the '
+                         'static coefficient is usually the larger')
+        return notes
 
     # Derived geometry -------------------------------------------------------
     @property

@@ -107,3 +107,24 @@ def load_preset(name, **overrides):
     phys, _ = physics_subset(read_parameter_file(path))
     params = ScrewParams.from_dict(phys)
     return ScrewParams.from_dict(overrides, base=params) if overrides else params
+
+
+def preset_label(name):
+    """
+    Return the name a preset reports: its own ``preset`` key for a file, else the name.
+
+    Parameters
+    ----------
+    name : str
+        Preset name or the path of a ``.yaml`` parameter file.
+
+    """
+    if not str(name).endswith(('.yaml', '.yml')):
+        return str(name)
+    try:
+        own = read_parameter_file(name).get('preset')
+    except (OSError, ParameterError, ValueError):
+        own = None
+    if isinstance(own, str) and own and not own.endswith(('.yaml', '.yml')):
+        return own
+    return Path(name).stem

@@ -59,13 +59,18 @@ class RunSettings(Schema):
                                         f'else at least {MIN_SPLIT_SECONDS:g} s', 0.0, 1e9)
     record_flush_interval: float = field(1.0, 's', 'flush the recording at least this often '
                                          '(bounds the loss on a crash)', 0.0, 3600.0)
+    record_max_total_bytes: int = field(
+        1 << 30, 'B', 'bound of the total size of the recordings of record_prefix in '
+        'record_dir: the oldest are deleted before a new file starts (files split at an '
+        f'eighth of it unless record_split_bytes is set); 0 none, else at least '
+        f'{8 * MIN_SPLIT_BYTES}', 0, 2 ** 62)
     stats_file: str = field('', '-', 'if set, write timing statistics (JSON) to this path at '
                             'shutdown (start-up only)', read_only=True)
 
     def _check_consistency(self):
         """Check the rules of the string and split settings beyond their type and range."""
         for name in ('record_prefix', 'record_dir', 'stats_file', 'joint_prefix',
-                     'record_split_bytes', 'record_split_seconds'):
+                     'record_split_bytes', 'record_split_seconds', 'record_max_total_bytes'):
             check_rule(name, getattr(self, name))
 
 
@@ -87,6 +92,9 @@ def check_rule(name, value):
     if name == 'record_split_bytes' and 0 < value < MIN_SPLIT_BYTES:
         raise ParameterError(name, f'{value} B would start a new file every few messages: '
                              f'give 0 (never) or at least {MIN_SPLIT_BYTES} B')
+    if name == 'record_max_total_bytes' and 0 < value < 8 * MIN_SPLIT_BYTES:
+        raise ParameterError(name, f'{value} B leaves no room for a file: give 0 (no bound) '
+                             f'or at least {8 * MIN_SPLIT_BYTES} B')
     if name == 'record_split_seconds' and 0.0 < value < MIN_SPLIT_SECONDS:
         raise ParameterError(name, f'{value!r} s would start many files a second: give 0 '
                              f'(never) or at least {MIN_SPLIT_SECONDS:g} s')

@@ -224,6 +224,26 @@ class Recorder:
             self._finishing.append(proc)
         self._proc = None
 
+    def wait_for_path(self, timeout):
+        """
+        Return the path of the file being written, waiting for the child to open it.
+
+        Parameters
+        ----------
+        timeout : float
+            Longest wait [s]; returns None if no file is open by then (or on an error).
+
+        """
+        end = time.monotonic() + timeout
+        while self._proc is not None and not self.error:
+            self.flush()
+            self.poll()
+            path = self._status.get('path')
+            if path or time.monotonic() > end:
+                return path or None
+            time.sleep(0.005)
+        return None
+
     def status(self):
         """Return (file, bytes, messages, error) for diagnostics."""
         st = self._status

@@ -9,16 +9,16 @@ and the crash-loss bound.
 import dataclasses
 import math
 import os
+import re
 import time
 from pathlib import Path
 
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-from ..core.settings import PREFIX_RE
-from .msgdefs import full_type_name, ros2msg_definition
-
+from ..core.settings import MIN_SPLIT_BYTES, PREFIX_RE
 from .mcap_file import Guarded, McapRecorder, one_line_error, ROSBAG2_METADATA_NAME
+from .msgdefs import full_type_name, ros2msg_definition
 from .qos import DEFAULT_QOS
 
 
@@ -39,6 +39,12 @@ class StorageOptions:
         Start a new file this long after the file's first message [s]; 0 never.
     flush_interval : float
         Write the open chunk and flush at least this often [s] (the crash-loss bound).
+    max_total_bytes : int
+        Bound of the total size of this prefix's recordings in ``directory`` [B];
+        0 none. Before each new file the oldest files named by this session's
+        pattern (``<prefix>_<YYYYmmdd-HHMMSS>_<NNN>.mcap``) are deleted until the
+        rest fit; no other file is touched. Without ``split_bytes`` the files are
+        then split at an eighth of the bound, so that old data can go.
 
     """
 
@@ -47,6 +53,7 @@ class StorageOptions:
     split_bytes: int = 0
     split_seconds: float = 0.0
     flush_interval: float = 1.0
+    max_total_bytes: int = 0
 
     def __post_init__(self):
         """Check the prefix and the split limits."""
@@ -54,6 +61,8 @@ class StorageOptions:
             raise ValueError(f'record_prefix {self.prefix!r} must match {PREFIX_RE.pattern}')
         if not self.split_bytes >= 0 or not self.split_seconds >= 0:
             raise ValueError('split_bytes and split_seconds must be >= 0 (0 = never)')
+        if not self.max_total_bytes >= 0:
+            raise ValueError('max_total_bytes must be >= 0 (0 = no bound)')
 
     @classmethod
     def from_run_settings(cls, settings):
@@ -69,7 +78,8 @@ class StorageOptions:
         return cls(directory=str(settings.record_dir), prefix=settings.record_prefix,
                    split_bytes=int(settings.record_split_bytes),
                    split_seconds=float(settings.record_split_seconds),
-                   flush_interval=float(settings.record_flush_interval))
+                   flush_interval=float(settings.record_flush_interval),
+                   max_total_bytes=int(settings.record_max_total_bytes))
 
     def to_dict(self):
         """Return the options as a plain dict (JSON for the recorder process)."""
@@ -106,6 +116,10 @@ class RecordingSession(Guarded):
         self.directory = Path(options.directory)
         self.prefix = options.prefix
         self.split_bytes = int(options.split_bytes)
+        self.max_total_bytes = int(options.max_total_bytes)
+        if self.max_total_bytes and not self.split_bytes:
+            self.split_bytes = max(MIN_SPLIT_BYTES, self.max_total_bytes // 8)
+        self.deleted = []        # paths removed to keep within max_total_bytes
         self.split_ns = (int(options.split_seconds * 1e9)
                          if math.isfinite(options.split_seconds) else 0)
         self.flush_interval = options.flush_interval
@@ -155,6 +169,8 @@ class RecordingSession(Guarded):
     def _open_next(self):
         if self._error is not None:
             return
+        if self.max_total_bytes:
+            self._prune()
         root = self.directory.resolve()
         while True:
             path = root / f'{self.prefix}_{self._stamp}_{self._index:03d}.mcap'
@@ -174,6 +190,24 @@ class RecordingSession(Guarded):
             rec.add_channel(topic, msg_type, qos, trim)
         for name, data in self._metadata.items():
             rec.add_metadata(name, data)
+
+    def _prune(self):
+        """Delete the oldest recordings of this prefix until the rest leave room for a file."""
+        pattern = re.compile(rf'^{re.escape(self.prefix)}_\d{{8}}-\d{{6}}_\d{{3}}\.mcap$')
+        try:
+            ours = [e for e in os.scandir(self.directory)
+                    if pattern.match(e.name) and e.is_file(follow_symlinks=False)]
+            ours.sort(key=lambda e: (e.stat().st_mtime_ns, e.name))
+            total = sum(e.stat().st_size for e in ours)
+            budget = self.max_total_bytes - self.split_bytes
+            for e in ours:
+                if total <= budget:
+                    break
+                total -= e.stat().st_size
+                os.unlink(e.path)
+                self.deleted.append(e.path)
+        except OSError as exc:
+            self._error = one_line_error(exc, self.directory)
 
     def _rotate(self):
         rec = self._rec

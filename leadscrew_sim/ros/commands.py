@@ -118,9 +118,7 @@ class CommandInputs:
             hold.stale = was_stale
         elif not was_stale:
             self._log.warn(f'torque command older than command_timeout {hold.timeout:g} s: '
-                           'applying 0 N m')
-        else:
-            self._log.warn('torque command stale: applying 0 N m', throttle_duration_sec=5.0)
+                           'applying 0 N m until the next command')
         return torque
 
     def age(self, wall_now, sim_now=None):

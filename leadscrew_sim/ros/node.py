@@ -31,6 +31,7 @@ diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`.
 import importlib
 import json
 import math
+import os
 import signal
 import sys
 import time
@@ -54,7 +55,8 @@ from ..io.session import StorageOptions
 from ..io.topics import TOPICS
 from .commands import CommandInputs
 from .diagnostics import diagnostic_array
-from .parameters import DEFAULT_PRESET, declare_parameters, StartupError, validate_changes
+from .parameters import (DEFAULT_PRESET, declare_parameters, integers_as_doubles, StartupError,
+                         validate_changes)
 from .timing import DeadlineSleeper, LoopStats
 
 __all__ = ['COMMAND_QOS', 'DEFAULT_PRESET', 'LeadScrewSimNode', 'main', 'make_executor',
@@ -106,9 +108,8 @@ class LeadScrewSimNode(Node):
         self.loop = LoopStats(keep_all=bool(s.stats_file))
         self.recorder = Recorder(self.get_logger())
         self._build_interfaces()
+        self.add_pre_set_parameters_callback(integers_as_doubles)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        if s.record:
-            self._start_recording()
         p = self.params
         self.get_logger().info(
             f'preset {self.preset}: {p.thread_form} d={p.major_diameter * 1e3:g} mm '
@@ -116,6 +117,10 @@ class LeadScrewSimNode(Node):
             f'{"self-locking" if p.self_locking else "back-drivable"}; '
             f'{s.update_rate:g} Hz, {self.model.nsub} substeps/step, '
             f'clock_mode {self.mode}')
+        for note in p.advisories():
+            self.get_logger().warn(note)
+        if s.record:
+            self._start_recording()
 
     def _make_model(self):
         """Build the model; a set needing too many substeps per step is a StartupError."""
@@ -150,6 +155,8 @@ class LeadScrewSimNode(Node):
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         if change.params is not None:
+            for note in set(change.params.advisories()) - set(self.params.advisories()):
+                self.get_logger().warn(note)
             self.params = change.params
             self.recorder.add_metadata('leadscrew_sim_parameters_update', dict(
                 {k: str(v) for k, v in change.physics.items()},
@@ -172,6 +179,7 @@ class LeadScrewSimNode(Node):
                 self._start_recording()
             else:
                 self.recorder.stop(wait=False)
+                self.get_logger().info('recording stopped')
 
     # -- ROS interfaces ------------------------------------------------------
     def _build_interfaces(self):
@@ -214,8 +222,14 @@ class LeadScrewSimNode(Node):
                 if topic in self._rec_topic}
 
     def _start_recording(self):
-        return self.recorder.start(StorageOptions.from_run_settings(self.settings),
-                                   self.recording_channels(), self.all_parameter_values())
+        """Start a recording; log and return the file it writes (None if it failed)."""
+        if not self.recorder.start(StorageOptions.from_run_settings(self.settings),
+                                   self.recording_channels(), self.all_parameter_values()):
+            return None
+        path = self.recorder.wait_for_path(timeout=5.0)
+        if path:
+            self.get_logger().info(f'recording to {os.path.abspath(path)}')
+        return path
 
     # -- command callbacks -----------------------------------------------------
     def _sim_now(self):
@@ -251,17 +265,24 @@ class LeadScrewSimNode(Node):
         self.inputs.reset()
         self.recorder.add_metadata('leadscrew_sim_reset', {'log_time_ns': self._sim_now()})
         response.success = True
-        response.message = f'reset to the initial state at sim time {self._sim_now()} ns'
+        response.message = (f'reset to the initial state at stamp {self._sim_now() / NS:.6f} s '
+                            f'({"ROS time" if self.mode == "realtime" else "sim time"})')
         self.get_logger().info(response.message)
         return response
 
     def _on_record(self, request, response):
         result = self.set_parameters([rclpy.parameter.Parameter('record', value=request.data)])
         ok = result[0].successful
+        if self.recorder.active:
+            self.recorder.wait_for_path(timeout=5.0)
         file, _size, _n, err = self.recorder.status()
         response.success = bool(ok and (self.recorder.active == request.data))
-        response.message = (f'recording to {file}' if self.recorder.active
-                            else (err or 'recording stopped'))
+        if not ok:
+            response.message = result[0].reason
+        elif self.recorder.active:
+            response.message = f'recording to {file}' if file else 'recording (file not open yet)'
+        else:
+            response.message = err or 'recording stopped'
         return response
 
     # -- stepping ----------------------------------------------------------------
@@ -467,6 +488,10 @@ def main(args=None):
         node.get_logger().info(f'stopped after {node.n} steps')
         return 0
     finally:
+        # A launch file forwards Ctrl-C to its nodes after the terminal did: a
+        # second SIGINT during teardown must not end the process with -2.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():

@@ -3,7 +3,8 @@ The node's ROS parameters: the physics (ScrewParams) and the run settings (RunSe
 
 Both are declared from their core schema (:mod:`leadscrew_sim.core.fields`):
 the unit goes into the description, the range into the descriptor, and the
-read-only flag from the run settings' schema and :data:`READ_ONLY_PHYSICS`.
+read-only flag from the field metadata. An integer given for a floating-point
+parameter (``ros2 param set ... backlash 0``) is taken as that number.
 Start-up overrides and run-time changes are coerced and checked once, by
 ``ScrewParams.from_dict`` and ``RunSettings.from_dict``; a batch of changes
 is taken whole or refused whole.
@@ -14,17 +15,13 @@ import math
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from ..core import load_preset, ParameterError, ScrewParams
+from ..core.presets import preset_label
 from ..core.settings import RunSettings
 
-__all__ = ['DEFAULT_PRESET', 'declare_parameters', 'descriptor', 'ParameterChange',
-           'READ_ONLY_PHYSICS', 'StartupError', 'validate_changes']
+__all__ = ['DEFAULT_PRESET', 'declare_parameters', 'descriptor', 'integers_as_doubles',
+           'ParameterChange', 'StartupError', 'validate_changes']
 
 DEFAULT_PRESET = 'tr12x3'
-
-#: ScrewParams fields that change the meaning of the state: read-only at run time.
-READ_ONLY_PHYSICS = frozenset((
-    'thread_form', 'hand', 'major_diameter', 'pitch', 'starts', 'pitch_diameter',
-    'anti_backlash', 'initial_position'))
 
 #: Parameters the node knows besides the physics and the run settings.
 OTHER_PARAMETERS = frozenset(('preset', 'use_sim_time', 'start_type_description_service'))
@@ -84,6 +81,7 @@ def declare_parameters(node):
     overrides = _overrides(node)
     preset = overrides.get('preset', DEFAULT_PRESET)
     base = _load_base(preset)
+    preset = preset_label(preset)
     node.declare_parameter('preset', preset, ParameterDescriptor(
         name='preset', read_only=True,
         description='preset name (config/<name>.yaml) or YAML path giving the defaults '
@@ -95,10 +93,9 @@ def declare_parameters(node):
         settings = RunSettings.from_dict({k: overrides[k] for k in run if k in overrides})
     except ParameterError as exc:
         raise StartupError(str(exc)) from None
-    for name, (_typ, _default, md) in physics.items():
-        _declare(node, name, getattr(params, name), md, name in READ_ONLY_PHYSICS)
-    for name, (_typ, _default, md) in run.items():
-        _declare(node, name, getattr(settings, name), md, md['read_only'])
+    for schema, values in ((physics, params), (run, settings)):
+        for name, (_typ, _default, md) in schema.items():
+            _declare(node, name, getattr(values, name), md, md['read_only'])
     for name in getattr(node, '_parameter_overrides', {}):
         if name not in physics and name not in run and name not in OTHER_PARAMETERS:
             node.get_logger().warn(f"ignoring unknown parameter '{name}'")
@@ -125,3 +122,31 @@ def validate_changes(parameters, params, settings):
     new_params = ScrewParams.from_dict(physics, base=params) if physics else None
     new_settings = RunSettings.from_dict(run, base=settings) if run else None
     return ParameterChange(physics, run, new_params, new_settings)
+
+
+#: Fields whose ROS parameter type is DOUBLE.
+_DOUBLES = frozenset(name for schema in (ScrewParams, RunSettings)
+                     for name, (typ, _d, _md) in schema.field_info().items() if typ is float)
+
+
+def integers_as_doubles(parameters):
+    """
+    Return the parameters with every integer given for a floating-point field made a double.
+
+    A pre-set callback of the node: rclpy checks the type against the
+    descriptor after it, so ``ros2 param set ... backlash 0`` sets 0.0 instead
+    of failing with "Wrong parameter type, expected 'Double' got 'Integer'".
+
+    Parameters
+    ----------
+    parameters : list of rclpy.parameter.Parameter
+        The parameters of one set request.
+
+    """
+    from rclpy.parameter import Parameter
+    out = []
+    for p in parameters:
+        if p.name in _DOUBLES and p.type_ == Parameter.Type.INTEGER:
+            p = Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+        out.append(p)
+    return out
