@@ -234,6 +234,7 @@ def _states(o, stamp, writer, enc):
     if writer is not None:
         for topic, data in enc.tick(stamp, values):
             writer.write(writer.ids[topic], data, stamp)
+        writer.write_tf(stamp, values[0], values[1])
     angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = values
     return (angle, x, w_screw, v_nut, tq_motor, f_ax), x, (f_ax, tq_thread)
 
@@ -265,13 +266,14 @@ def run(args):
                                            else src.name)) + '.resim.mcap'
     if os.path.abspath(out) == os.path.abspath(args.file):
         raise CliError(f'--output {out} would overwrite the input file')
-    w = RunWriter(out, sim.prefix)
+    w = RunWriter(out, sim.prefix, params=sim.params)
     meta = dict(sim.meta)
     meta.update({n: str(getattr(sim.params, n)) for n in ScrewParams.names()})
     w.rec.add_metadata(PARAMS_RECORD, meta)
     w.rec.add_metadata(CLI_RECORD, {'command': 'resim', 'source': str(args.file),
                                     'overrides': ' '.join(args.set or [])})
     try:
+        w.write_description(sim.t0)
         progress = Progress(sim.n_steps, 'resim', args.quiet)
         new_states, _outs, _model = sim.run(w, progress=progress)
     finally:

@@ -5,7 +5,8 @@ Per tick k at t_k = k dt the file holds torque_command (and external_force
 when it changes) logged at t_k, then the states logged at t_k + dt: the
 node's rule (:data:`leadscrew_sim.core.commands.COMMAND_LOG_TIME`), so
 ``resim`` feeds the model the very same doubles and reproduces the states
-bit for bit.
+bit for bit. The robot description and /tf_static come first (at t_0 = 0),
+each tick's /tf after its states (then /clock with ``--clock``).
 """
 import math
 import sys
@@ -71,7 +72,7 @@ def run(args):
     force_fn, force_desc = make_force_source(args)
     model = LeadScrewModel(params, dt=dt_ns / NS)
     out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
-    w = RunWriter(out, prefix, clock=args.clock)
+    w = RunWriter(out, prefix, clock=args.clock, params=params)
     w.rec.add_metadata(PARAMS_RECORD, parameters_record(
         params, label, rate, dt_ns, {'joint_prefix': prefix} if prefix else None))
     w.rec.add_metadata(CLI_RECORD, {
@@ -79,6 +80,7 @@ def run(args):
         'force_input': force_desc, 'steps': str(n_steps)})
     t_wall = time.perf_counter()
     try:
+        w.write_description(0)
         stats = simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w,
                               Progress(n_steps, 'simulate', args.quiet), args.clock)
     finally:
@@ -183,6 +185,10 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
     rows += [r for _topic, r in states]
     times = [t_cmd] + [t_state] * len(states)
     chans = [ids['torque_command']] + [ids[topic] for topic, _r in states]
+    if w.tf is not None:
+        rows.append(w.tf_rows(t_state, cols[0], cols[1]))
+        times.append(t_state)
+        chans.append(ids['/tf'])
     if clock:
         rows.append(enc.clock.rows(t_state, []))
         times.append(t_state)

@@ -6,12 +6,19 @@ The layout: one channel per command and state topic of :mod:`.topics`
 and a parameters record holding every physics parameter and run setting as
 ``str(value)`` (the node's keys), read back with :func:`params_from_record`
 and :func:`run_setting`.
+
+With the physics parameters, a run file also carries what robot_state_publisher
+would publish for the axis (:mod:`.description`), so a viewer (Foxglove's 3D
+panel) shows the axis moving from the file alone: ``robot_description``
+(std_msgs/String, transient local) and ``/tf_static`` once at the start (log
+time t0), ``/tf`` with every state tick (the joint_states' stamp and log time,
+the published screw angle and nut position), after that tick's state messages.
 """
 import dataclasses
 import os
 from pathlib import Path
 
-from . import messages as M, topics as T
+from . import messages as M, topics as T, tf as TF
 from ..core import fields
 from ..core.commands import COMMAND_LOG_TIME
 from ..core.params import ScrewParams
@@ -26,15 +33,23 @@ RESET_RECORD = 'leadscrew_sim_reset'
 #: Metadata record of the command line that wrote the file.
 CLI_RECORD = 'leadscrew_sim_cli'
 
+#: The description channels of a run file: key in ``RunWriter.ids`` -> (topic, type, QoS);
+#: topics as robot_state_publisher publishes them (robot_description in the namespace).
+DESCRIPTION_TOPICS = {
+    'robot_description': ('robot_description', TF.STRING_TYPE, TF.ROBOT_DESCRIPTION_QOS),
+    '/tf_static': ('/tf_static', TF.TFMESSAGE_TYPE, TF.TF_STATIC_QOS),
+    '/tf': ('/tf', TF.TFMESSAGE_TYPE, TF.TF_QOS),
+}
+
 #: The run settings ``simulate`` records: the node's defaults, clock mode 'simulate' and
 #: command_timeout 0 (a command comes every tick).
 SIMULATE_SETTINGS = dict(RunSettings(command_timeout=0.0).to_dict(), clock_mode='simulate')
 
 _RUN_FIELDS = {f.name: f for f in dataclasses.fields(RunSettings)}
 
-__all__ = ['CLI_RECORD', 'PARAMS_RECORD', 'RESET_RECORD', 'UPDATE_RECORD', 'RunFileError',
-           'RunWriter', 'SIMULATE_SETTINGS', 'params_from_record', 'parameters_record',
-           'run_setting']
+__all__ = ['CLI_RECORD', 'DESCRIPTION_TOPICS', 'PARAMS_RECORD', 'RESET_RECORD', 'UPDATE_RECORD',
+           'RunFileError', 'RunWriter', 'SIMULATE_SETTINGS', 'params_from_record',
+           'parameters_record', 'run_setting']
 
 
 class RunFileError(OSError):
@@ -55,14 +70,28 @@ class RunWriter:
         Namespace the topics are resolved in.
     clock : bool
         Also register a ``/clock`` channel.
+    params : ScrewParams, optional
+        The axis: render its robot description and register the description
+        channels of :data:`DESCRIPTION_TOPICS` after the others; then
+        :meth:`write_description` writes it and :meth:`write_tf` /
+        :meth:`tf_rows` the transforms. ``None``: no description.
 
     """
 
-    def __init__(self, path, joint_prefix='', namespace='/', clock=False):
+    def __init__(self, path, joint_prefix='', namespace='/', clock=False, params=None):
         """Open the file and register the node's channels (resolved names)."""
         from .mcap_file import McapRecorder
         from .qos import qos_profile_yaml
         self.path = str(path)
+        self.urdf = self.tree = self.tf = None
+        if params is not None:
+            from .description import DescriptionError, JointTree, render_urdf, xacro_args
+            try:
+                self.urdf = render_urdf(xacro_args(params, joint_prefix))
+                self.tree = JointTree(self.urdf)
+            except (DescriptionError, ValueError) as exc:
+                raise RunFileError(f'robot description: {exc}') from None
+            self.tf = TF.TfEncoder(self.tree.moving_frames)
         try:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -77,8 +106,31 @@ class RunWriter:
             # exact CDR from our encoders: the recorder need not trim
             self.ids[rel] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
                                                  qos_profile_yaml(**qos), trim=False)
+        if self.tree is not None:
+            for key, (rel, msg_type, qos) in DESCRIPTION_TOPICS.items():
+                self.ids[key] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
+                                                     qos_profile_yaml(**qos), trim=False)
         self.write = self.rec.write
         self.enc = M.StateEncoder(joint_prefix)
+
+    def write_description(self, log_time_ns):
+        """Write robot_description and the static transforms (stamp = log time) once."""
+        if self.tree is None:
+            return
+        t = int(log_time_ns)
+        self.write(self.ids['robot_description'], TF.encode_string(self.urdf), t)
+        self.write(self.ids['/tf_static'], TF.encode_tf_message(
+            [(t, p, c, tr, q) for p, c, tr, q in self.tree.static_transforms()]), t)
+
+    def write_tf(self, stamp_ns, screw_angle, nut_position):
+        """Write the /tf of one state tick at ``stamp_ns`` (stamp and log time)."""
+        if self.tree is not None:
+            self.write(self.ids['/tf'], self.tf(
+                stamp_ns, self.tree.moving_values(screw_angle, nut_position)), stamp_ns)
+
+    def tf_rows(self, stamps_ns, screw_angles, nut_positions):
+        """Return the /tf messages of many ticks as uint8 rows (``TfEncoder.rows``)."""
+        return self.tf.rows(stamps_ns, self.tree.moving_columns(screw_angles, nut_positions))
 
     def close(self):
         """Finish the file and return its size [B]; raise RunFileError on an I/O error."""

@@ -160,14 +160,18 @@ def test_simulate_file_layout(sim_file):
                      '/external_force': 'std_msgs/msg/Float64',
                      '/joint_states': 'sensor_msgs/msg/JointState',
                      '/nut_position': 'std_msgs/msg/Float64',
-                     '/thread_force': 'geometry_msgs/msg/WrenchStamped'}
+                     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
+                     '/robot_description': 'std_msgs/msg/String',
+                     '/tf_static': 'tf2_msgs/msg/TFMessage',
+                     '/tf': 'tf2_msgs/msg/TFMessage'}
     params = meta['leadscrew_sim_parameters']
     assert set(ScrewParams.field_info()) <= set(params)
     assert params['clock_mode'] == 'simulate' and params['preset'] == 'tr12x3'
     assert params['update_rate'] == '1000.0' and params['dt_ns'] == '1000000'
     assert 'rosbag2' in meta
-    for topic in ('/joint_states', '/nut_position', '/thread_force', '/torque_command'):
+    for topic in ('/joint_states', '/nut_position', '/thread_force', '/torque_command', '/tf'):
         assert len(by_topic[topic]) == 1000, topic
+    assert len(by_topic['/robot_description']) == len(by_topic['/tf_static']) == 1
     js = by_topic['/joint_states']
     times = [t for t, _ in js]
     assert times == [k * 1_000_000 for k in range(1, 1001)]
@@ -185,7 +189,7 @@ def test_simulate_file_layout(sim_file):
         for conn, _t, raw in r.messages():
             r.deserialize(raw, conn.msgtype)
             n += 1
-    assert n == 4000
+    assert n == 5002
 
 
 # ---------------------------------------------------------------------------
@@ -217,6 +221,8 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
     """
     Per tick: torque_command at t_k, external_force only when it changes, then the states.
 
+    (robot_description and /tf_static first, /tf after the states, /clock last.)
+
     2.5 s at 1 kHz spans whole and partial blocks of the batched writer; the
     force CSV changes before the ticks at 0.25 s, 0.999 s (the last tick of
     the first block) and 1.0 s (the first of the second). ``move`` is the closed-loop path. A
@@ -236,14 +242,14 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
     ms = 1_000_000
     forces = [(t, C.decode_float64(d)) for topic, t, d in seq if topic == '/external_force']
     assert forces == [(0, 0.0), (250 * ms, 3.0), (999 * ms, -2.0), (1000 * ms, 5.0)]
-    expected = []
+    expected = [('/robot_description', 0), ('/tf_static', 0)]
     force_at = {t for t, _ in forces}
     for k in range(2500):
         expected.append(('/torque_command', k * ms))
         if k * ms in force_at:
             expected.append(('/external_force', k * ms))
         expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
-                                                 '/thread_force', '/clock')]
+                                                 '/thread_force', '/tf', '/clock')]
     assert [(t, lt) for t, lt, _ in seq] == expected
     r = ok('resim', out, '--output', tmp_path / 'again.mcap')
     assert _overall(r.stdout) == 0.0
