@@ -1,45 +1,27 @@
 """
-Tests of the offline command line (``python -m leadscrew_sim.cli``) and leadscrew_sim.messages.
+The offline command line (``python -m leadscrew_sim.cli``) and leadscrew_sim.io.messages.
 
 The CLI runs as a real subprocess; files are checked with independent readers
 (mcap + mcap_ros2, rosbags, rclpy).
 """
-import os
 import random
 import re
 import struct
-import subprocess
-import sys
 import threading
 import time
 
+from helpers import cli, cli_ok, NS
 from leadscrew_sim.io import cdr as C, messages as M
 from leadscrew_sim.io.msgdefs import cdr_length
 import pytest
-
-NS = 1_000_000_000
-
-
-def cli(*args, timeout=300):
-    """Run the CLI; return the CompletedProcess (text)."""
-    return subprocess.run([sys.executable, '-m', 'leadscrew_sim.cli', *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout, env=dict(os.environ))
-
-
-def ok(*args, **kw):
-    """Run the CLI and assert success."""
-    r = cli(*args, **kw)
-    assert r.returncode == 0, r.stderr
-    assert 'Traceback' not in r.stderr
-    return r
 
 
 @pytest.fixture(scope='module')
 def sim_file(tmp_path_factory):
     """Return a 1 s, 1 kHz simulate recording of the default preset (sine torque)."""
     path = tmp_path_factory.mktemp('sim') / 'run.mcap'
-    ok('simulate', '--duration', 1.0, '--profile', 'sine', '--amplitude', 0.2,
-       '--frequency', 2.0, '--output', path, '--quiet')
+    cli_ok('simulate', '--duration', 1.0, '--profile', 'sine', '--amplitude', 0.2,
+           '--frequency', 2.0, '--output', path, '--quiet')
     return path
 
 
@@ -205,14 +187,14 @@ def _overall(stdout):
 def test_resim_bit_identical_and_override(sim_file, tmp_path):
     """Re-simulation without overrides reproduces every state exactly; another backlash differs."""
     out = tmp_path / 'same.mcap'
-    r = ok('resim', sim_file, '--output', out)
+    r = cli_ok('resim', sim_file, '--output', out)
     assert _overall(r.stdout) == 0.0
     assert 'compared 1000 recorded ticks' in r.stdout
     assert out.is_file()
     # The resim output is itself a recording whose resim is exact.
-    r2 = ok('resim', out, '--output', tmp_path / 'again.mcap')
+    r2 = cli_ok('resim', out, '--output', tmp_path / 'again.mcap')
     assert _overall(r2.stdout) == 0.0
-    r3 = ok('resim', sim_file, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap')
+    r3 = cli_ok('resim', sim_file, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap')
     assert _overall(r3.stdout) > 0.0
 
 
@@ -234,8 +216,8 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
     out = tmp_path / 'run.mcap'
     args = ['--profile', 'step', '--step-time', 0.1, '--amplitude', 0.2] if profile == 'step' \
         else ['--profile', 'move', '--target', 0.002]
-    ok('simulate', '--duration', 2.5, *args, '--force-csv', csv, '--clock', '--output', out,
-       '--quiet')
+    cli_ok('simulate', '--duration', 2.5, *args, '--force-csv', csv, '--clock', '--output', out,
+           '--quiet')
     with open(out, 'rb') as f:
         seq = [(c.topic, m.log_time, m.data)
                for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
@@ -251,13 +233,13 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
         expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
                                                  '/thread_force', '/tf', '/clock')]
     assert [(t, lt) for t, lt, _ in seq] == expected
-    r = ok('resim', out, '--output', tmp_path / 'again.mcap')
+    r = cli_ok('resim', out, '--output', tmp_path / 'again.mcap')
     assert _overall(r.stdout) == 0.0
 
 
 def test_info(sim_file):
     """Info shows counts, the position range and the re-simulated stick fraction."""
-    r = ok('info', sim_file)
+    r = cli_ok('info', sim_file)
     assert re.search(r'/joint_states\s+sensor_msgs/msg/JointState\s+1000', r.stdout)
     assert 'nut position: min' in r.stdout and 'stuck' in r.stdout
     assert 'duration:  1.000000 s' in r.stdout
@@ -282,7 +264,7 @@ def test_play_timing(tmp_path, run_exe):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     path = tmp_path / 'p.mcap'
-    ok('simulate', '--rate', 100, '--duration', 2.0, '--torque', 0.0, '--output', path, '-q')
+    cli_ok('simulate', '--rate', 100, '--duration', 2.0, '--torque', 0.0, '--output', path, '-q')
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node('play_listener', context=ctx)
@@ -320,10 +302,10 @@ def test_play_timing(tmp_path, run_exe):
 def test_plot_png(tmp_path):
     """A stick-slip move gives a 1200x900 PNG."""
     path = tmp_path / 'ss.mcap'
-    ok('simulate', '--preset', 'stick_slip', '--profile', 'move', '--target', 0.004,
-       '--speed', 0.002, '--duration', 3.0, '--output', path, '-q')
+    cli_ok('simulate', '--preset', 'stick_slip', '--profile', 'move', '--target', 0.004,
+           '--speed', 0.002, '--duration', 3.0, '--output', path, '-q')
     png = tmp_path / 'ss.png'
-    ok('plot', path, '--output', png)
+    cli_ok('plot', path, '--output', png)
     data = png.read_bytes()
     assert data[:8] == b'\x89PNG\r\n\x1a\n'
     assert data[12:16] == b'IHDR'

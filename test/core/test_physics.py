@@ -83,7 +83,7 @@ def test_breakaway_torque_matches_closed_form(form, collar, direction):
                collar_radius=0.008 if collar else 0.0)
     assert p.self_locking   # so that lowering needs a positive torque too
     torque, closed = _breakaway(p, direction)
-    # 1 % is the bound; the ramp resolution is 0.05 % of the closed form.
+    # 1 % is the required bound; the ramp resolution is 0.05 % of the closed form.
     assert torque == pytest.approx(closed, rel=0.01)
 
 

@@ -11,6 +11,7 @@ import time
 from ament_index_python.packages import get_package_share_directory
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
+from helpers import REPO
 from leadscrew_sim.io.msgdefs import cdr_length, ros2msg_definition
 from leadscrew_sim.io.mcap_file import McapRecorder
 from leadscrew_sim.io.session import recover, RecordingSession, StorageOptions
@@ -25,7 +26,6 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Header
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
 FLUSH = 0.2          # s, flush interval of the crash tests
 MARGIN = 0.3         # s, allowed on top of FLUSH for the write period and scheduling
 SEP = '=' * 80

@@ -12,6 +12,7 @@ from pathlib import Path
 import random
 import subprocess
 
+from helpers import NS, SHARED
 from leadscrew_sim.io import msgdefs, tf
 from leadscrew_sim.io.mcap_file import McapRecorder
 from leadscrew_sim.io.qos import qos_profile_yaml
@@ -22,9 +23,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, get_types_from_msg, Stores
 
-REPO = Path(__file__).resolve().parents[1]
-MCAP_CLI = REPO.parent / 'shared' / 'mcap-cli' / 'mcap'
-NS = 1_000_000_000
+MCAP_CLI = SHARED / 'mcap-cli' / 'mcap'
 SEP = '\n' + '=' * 80 + '\n'
 #: TFMessage's dependencies in the order msgdefs (and rosbag2) writes them: each file's
 #: dependencies sorted, depth first.

@@ -10,8 +10,8 @@ read from config/tr12x3.yaml.
 """
 import io
 import math
-from pathlib import Path
 
+from helpers import REPO
 from lxml import etree
 import numpy as np
 import pytest
@@ -19,7 +19,6 @@ import xacro
 import yaml
 import yourdfpy
 
-REPO = Path(__file__).resolve().parents[1]
 XACRO = REPO / 'urdf' / 'leadscrew_axis.urdf.xacro'
 
 #: (prefix, lead, stroke_min, stroke_max, hand) combinations rendered.

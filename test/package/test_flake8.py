@@ -1,10 +1,7 @@
 """ament flake8 style check, as ROS packages run it."""
-from pathlib import Path
-
-import pytest
 from ament_flake8.main import main_with_errors
-
-REPO = Path(__file__).resolve().parents[1]
+from helpers import REPO
+import pytest
 
 
 @pytest.mark.flake8

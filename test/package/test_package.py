@@ -5,10 +5,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+from helpers import REPO, SHARED
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-SCHEMA = REPO.parent / 'shared' / 'schemas' / 'package_format3.xsd'
+SCHEMA = SHARED / 'schemas' / 'package_format3.xsd'
 
 
 @pytest.fixture(scope='module')

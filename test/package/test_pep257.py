@@ -1,10 +1,7 @@
 """ament pep257 docstring check, as ROS packages run it."""
-from pathlib import Path
-
-import pytest
 from ament_pep257.main import main
-
-REPO = Path(__file__).resolve().parents[1]
+from helpers import REPO
+import pytest
 
 
 @pytest.mark.linter

@@ -8,14 +8,13 @@ rule for the platform (a package list, or an installer such as pip with
 packages), following rosdep's rule syntax: per-OS entries, optionally keyed by
 codename or '*', a null entry meaning "not available".
 """
-from pathlib import Path
 
 from catkin_pkg.package import parse_package
+from helpers import REPO, SHARED
 import pytest
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-ROSDEP = REPO / '..' / 'shared' / 'rosdep'
+ROSDEP = SHARED / 'rosdep'
 PLATFORMS = (('ubuntu', 'noble'), ('debian', 'bookworm'))
 INSTALLERS = ('apt', 'pip', 'source')
 

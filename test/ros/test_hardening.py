@@ -1,7 +1,7 @@
 """
 Hardening: the node as a real process under hostile or extreme input.
 
-Every test starts ``python -m leadscrew_sim.node`` (conftest ``run_exe``) on
+Every test starts ``python -m leadscrew_sim.node`` (fixture ``run_exe``) on
 the session's isolated DDS domain and talks to it over real middleware; no
 mocks. Covered: command fuzzing, a command flood from another process,
 parameter abuse at run time, physically extreme parameter sets at start-up,
@@ -20,6 +20,8 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
+from helpers import (command_publisher, DEEP, MS, NODE, NS, param_msg, stamp_ns, start_node,
+                     wait_states)
 from leadscrew_sim.core import load_preset, ScrewParams
 from leadscrew_sim.core.settings import PREFIX_RE
 from leadscrew_sim.io.session import recover
@@ -28,23 +30,11 @@ import pytest
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import (DescribeParameters, GetParameters, ListParameters,
                                 SetParameters, SetParametersAtomically)
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool
-from test_node import (command_publisher, DEEP, MS, NODE, Ros, stamp_ns, start_node,
-                       wait_states)
 
-NS = 1_000_000_000
 PRESET = load_preset('tr12x3')
-
-
-@pytest.fixture
-def ros():
-    """Yield a test-side Ros helper (test_node.Ros)."""
-    r = Ros()
-    yield r
-    r.close()
 
 
 def diag_values(msg):
@@ -61,11 +51,6 @@ def finite_wrench(msg):
     """Return True if every number of a WrenchStamped is finite."""
     f, t = msg.wrench.force, msg.wrench.torque
     return all(math.isfinite(v) for v in (f.x, f.y, f.z, t.x, t.y, t.z))
-
-
-def param_msg(name, value):
-    """Return an rcl_interfaces/Parameter message."""
-    return Parameter(name, value=value).to_parameter_msg()
 
 
 def param_value(pv):

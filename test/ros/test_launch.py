@@ -29,12 +29,11 @@ import sysconfig
 import textwrap
 import time
 
+from helpers import REPO, SHARED
 import pytest
 import yaml
 import yourdfpy
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO / '..' / 'shared'
 INSTALL_SH = SHARED / 'ros2-tools' / 'install.sh'
 TOOLS_VENV = Path(sys.prefix) / 'ros2-tools-venv'
 DOMAIN_ID = 100 + os.getpid() % 100

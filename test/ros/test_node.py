@@ -1,7 +1,7 @@
 """
 The ROS 2 node as a real process, exercised over DDS from the test process.
 
-Every test starts ``python -m leadscrew_sim.node`` (conftest ``run_exe``),
+Every test starts ``python -m leadscrew_sim.node`` (fixture ``run_exe``),
 talks to it through real middleware on an isolated domain and stops it.
 """
 import math
@@ -11,115 +11,17 @@ import struct
 import subprocess
 import sys
 import time
-import uuid
 
 from diagnostic_msgs.msg import DiagnosticArray
+from helpers import (command_publisher, DEEP, MS, NODE, param_msg, Ros, stamp_ns, start_node,
+                     wait_states)
+from leadscrew_sim.core import load_preset
 import pytest
 from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
-
-from leadscrew_sim.core import load_preset
-
-NODE = '/leadscrew_sim_node'
-DEEP = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-MS = 1_000_000
-
-
-def stamp_ns(msg):
-    """Return header.stamp in integer nanoseconds."""
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
-class Ros:
-    """A test-side rclpy node on its own context, spun explicitly."""
-
-    def __init__(self, overrides=None):
-        self.ctx = Context()
-        rclpy.init(context=self.ctx)
-        self.node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=self.ctx,
-                                      parameter_overrides=overrides or [])
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.extra = []
-
-    def add_node(self, name, overrides=None):
-        """Add a second node to the executor."""
-        n = rclpy.create_node(name, context=self.ctx, parameter_overrides=overrides or [])
-        self.ex.add_node(n)
-        self.extra.append(n)
-        return n
-
-    def spin_for(self, seconds):
-        """Spin for a while."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def spin_until(self, pred, timeout):
-        """Spin until pred() is true or timeout; return pred()."""
-        end = time.monotonic() + timeout
-        while not pred() and time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=0.005)
-        return pred()
-
-    def collect(self, msg_type, topic, qos=DEEP, raw=False):
-        """Subscribe and return the list the messages are appended to."""
-        out = []
-        self.node.create_subscription(msg_type, topic, out.append, qos, raw=raw)
-        return out
-
-    def call(self, srv_type, name, request, timeout=10.0):
-        """Call a service and return the response."""
-        cli = self.node.create_client(srv_type, name)
-        assert self.spin_until(cli.service_is_ready, timeout), f'{name} not available'
-        fut = cli.call_async(request)
-        assert self.spin_until(fut.done, timeout), f'{name} did not answer'
-        return fut.result()
-
-    def close(self):
-        """Destroy everything."""
-        self.ex.shutdown()
-        for n in self.extra + [self.node]:
-            n.destroy_node()
-        rclpy.shutdown(context=self.ctx)
-
-
-@pytest.fixture
-def ros():
-    """Yield a test-side Ros helper."""
-    r = Ros()
-    yield r
-    r.close()
-
-
-def start_node(run_exe, *params, record=False):
-    """Start the node with -p params (record off unless asked)."""
-    args = ['--ros-args']
-    if not record:
-        args += ['-p', 'record:=false']
-    for p in params:
-        args += ['-p', p]
-    return run_exe('leadscrew_sim.node', *args)
-
-
-def wait_states(ros, states, proc, n=1, timeout=30.0):
-    """Wait until n joint_states arrived (or the node died)."""
-    ok = ros.spin_until(lambda: len(states) >= n or proc.proc.poll() is not None, timeout)
-    assert ok and len(states) >= n, f'no joint_states from the node:\n{proc.output()}'
-
-
-def command_publisher(ros, topic='torque_command', msg_type=Float64, timeout=10.0):
-    """Create a publisher and wait until the node subscribed to it."""
-    pub = ros.node.create_publisher(msg_type, topic, 10)
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
-    return pub
 
 
 def latest_diag(diags, key):
@@ -315,10 +217,6 @@ def test_lockstep_is_bit_reproducible(run_exe):
     assert len(set(first)) == len(first)
 
 
-def _param(name, value):
-    return Parameter(name, value=value).to_parameter_msg()
-
-
 @pytest.mark.timeout(90)
 def test_invalid_parameters(run_exe, ros):
     bad = start_node(run_exe, 'backlash:=0.5')
@@ -330,22 +228,22 @@ def test_invalid_parameters(run_exe, ros):
     states = ros.collect(JointState, 'joint_states')
     wait_states(ros, states, proc)
     res = ros.call(SetParameters, f'{NODE}/set_parameters',
-                   SetParameters.Request(parameters=[_param('mu_s', -1.0)]))
+                   SetParameters.Request(parameters=[param_msg('mu_s', -1.0)]))
     assert not res.results[0].successful
     assert 'mu_s' in res.results[0].reason
     # A set the ranges accept but the model refuses: our message names it.
     res = ros.call(SetParameters, f'{NODE}/set_parameters',
-                   SetParameters.Request(parameters=[_param('backlash', 0.005)]))
+                   SetParameters.Request(parameters=[param_msg('backlash', 0.005)]))
     assert not res.results[0].successful
     assert "parameter 'backlash'" in res.results[0].reason and 'pitch' in res.results[0].reason
     # Read-only geometry.
     res = ros.call(SetParameters, f'{NODE}/set_parameters',
-                   SetParameters.Request(parameters=[_param('pitch', 0.004)]))
+                   SetParameters.Request(parameters=[param_msg('pitch', 0.004)]))
     assert not res.results[0].successful
     # All or nothing.
     res = ros.call(SetParametersAtomically, f'{NODE}/set_parameters_atomically',
                    SetParametersAtomically.Request(parameters=[
-                       _param('mu_k', 0.1), _param('backlash', 0.01)]))
+                       param_msg('mu_k', 0.1), param_msg('backlash', 0.01)]))
     assert not res.result.successful and 'backlash' in res.result.reason
 
     def get(*names):
@@ -356,7 +254,7 @@ def test_invalid_parameters(run_exe, ros):
     assert get('mu_k', 'backlash') == [0.15, 1e-4]
     # A valid change goes through.
     res = ros.call(SetParameters, f'{NODE}/set_parameters',
-                   SetParameters.Request(parameters=[_param('mu_k', 0.1)]))
+                   SetParameters.Request(parameters=[param_msg('mu_k', 0.1)]))
     assert res.results[0].successful, res.results[0].reason
     assert get('mu_k') == [0.1]
     # Still publishing.

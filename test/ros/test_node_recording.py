@@ -2,10 +2,10 @@
 Recordings made by the running node, read back by independent readers.
 
 The node runs as a real process on the test session's isolated DDS domain
-(conftest); a live subscriber in the test process sees what the node
+(set up by conftest.py); a live subscriber in the test process sees what the node
 published. Each recording is read with mcap + mcap_ros2 and with rosbags and
 compared with the live data: a clean stop (SIGINT, SIGTERM), a crash
-(SIGKILL, then ``leadscrew_sim.recording.recover``), a lockstep run that
+(SIGKILL, then ``leadscrew_sim.io.session.recover``), a lockstep run that
 ``leadscrew_sim resim`` reproduces bit for bit, and ``leadscrew_sim play``.
 """
 import math
@@ -18,10 +18,9 @@ import subprocess
 import sys
 import time
 
-from conftest import NodeProcess
-from test_node import Ros, stamp_ns
-from leadscrew_sim.io.msgdefs import ros2msg_definition
+from helpers import cli_ok, MS, NODE, NodeProcess, NS, Ros, stamp_ns, wait_states
 from leadscrew_sim.core import load_preset, ScrewParams
+from leadscrew_sim.io.msgdefs import ros2msg_definition
 from leadscrew_sim.io.session import recover
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -32,10 +31,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-NS = 1_000_000_000
-MS = 1_000_000
+#: QoS of the joint_states subscriptions of this module (deeper than helpers.DEEP).
 DEEP = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
-NODE = '/leadscrew_sim_node'
 
 #: Recorded topics of a realtime run -> message type.
 TYPES = {
@@ -70,7 +67,7 @@ def bits(values):
 
 
 class Live(Ros):
-    """The test_node Ros helper plus joint_states capture with receive times."""
+    """The helpers.Ros helper plus joint_states capture with receive times."""
 
     def states(self):
         """Subscribe to joint_states; return the list of (receive time.time_ns(), msg)."""
@@ -106,12 +103,6 @@ def node_argv(directory, prefix, *params):
 def log_text(proc):
     """Return what a (possibly stopped) NodeProcess printed."""
     return Path(proc.log_path).read_text(errors='replace')
-
-
-def wait_states(live, states, proc, n=1, timeout=30.0):
-    """Wait until n joint_states arrived (or the node died)."""
-    ok = live.spin_until(lambda: len(states) >= n or proc.proc.poll() is not None, timeout)
-    assert ok and len(states) >= n, f'no joint_states from the node:\n{proc.output()}'
 
 
 def only_file(directory, prefix):
@@ -158,14 +149,6 @@ def check_complete(path, expected_messages=None):
     if expected_messages is not None:
         assert n == expected_messages
     return n
-
-
-def cli(*args, timeout=120):
-    """Run ``python -m leadscrew_sim.cli``; return the CompletedProcess (text)."""
-    r = subprocess.run([sys.executable, '-m', 'leadscrew_sim.cli', *map(str, args)],
-                       capture_output=True, text=True, timeout=timeout, env=dict(os.environ))
-    assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
-    return r
 
 
 # ---------------------------------------------------------------------------
@@ -477,7 +460,7 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
         struct.pack('<d', c + 0.0) for c in commands]
 
     out = tmp_path / 'ls.resim.mcap'
-    r = cli('resim', path, '--output', out, '--quiet')
+    r = cli_ok('resim', path, '--output', out, '--quiet')
     print(r.stdout)
     rows, compared, overall = _resim_rows(r.stdout)
     assert compared == len(commands)
@@ -488,8 +471,8 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     for topic in ('/joint_states', '/nut_position', '/thread_force'):
         assert raw_messages(out, topic) == raw_messages(path, topic), topic
 
-    r = cli('resim', path, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap',
-            '--quiet')
+    r = cli_ok('resim', path, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap',
+               '--quiet')
     rows, compared, overall = _resim_rows(r.stdout)
     assert compared == len(commands)
     assert overall > 0.0 and '(bit-identical)' not in r.stdout
@@ -517,5 +500,5 @@ def test_lockstep_command_timeout_resim_matches_node(live, tmp_path):
     efforts = [m.effort[0] for _t, m in states]
     # Command logged at 2 ms, timeout 5 ms: the step from 8 ms (age 6 ms) gets 0.
     assert efforts == [0.3] * 8 + [0.0] * 5, efforts
-    r = cli('resim', only_file(tmp_path, 'age'), '--output', tmp_path / 'r.mcap', '--quiet')
+    r = cli_ok('resim', only_file(tmp_path, 'age'), '--output', tmp_path / 'r.mcap', '--quiet')
     assert _resim_rows(r.stdout)[2] == 0.0, r.stdout
