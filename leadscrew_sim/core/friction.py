@@ -1,15 +1,75 @@
 """
 The friction law of the thread contact (physics.md section 6), compiled.
 
+The law is self-contained: the kernel never names its parameters. They live
+in the friction block of the parameter vector (N_FRICTION slots from
+layout.P_FRICTION), whose slots this module alone assigns (P_MUS .. P_ZCUT
+below). pack_friction (plain Python, called by model.pack_params) fills them
+from ScrewParams. friction_constants(P), called by the kernel once per call,
+returns the law's constants as the tuple fc, forming drop = mu_s' - mu_k' and
+ivst = 1 / v_st from the slots; the law functions take fc.
+
 mu_apparent is the plain Stribeck law on the parameter vector; _mu is the same
-law on unpacked parameters with a bit-exact shortcut (_stribeck_cut gives where
-it applies), and _mu_lower an exp-free lower bound of it. _thread_limit and
-_thread_limits turn the law into the impulse limits of a thread for one substep.
+law with a bit-exact shortcut (_stribeck_cut gives where it applies), and
+_mu_lower an exp-free lower bound of it. _thread_limit and _thread_limits turn
+the law into the impulse limits of a thread for one substep.
+
+A new friction law (another curve shape, more parameters) therefore touches
+this module and params.py (its fields) only, plus layout.py if its slots
+outgrow the N_FRICTION of the block.
 """
 import math
 
 from ._jit import kernel_jit
-from .layout import P_DST, P_MUK, P_MUS, P_MUV, P_VST
+from .layout import N_FRICTION, P_FRICTION
+
+# Slots of the friction block in P ----------------------------------------------
+P_MUS = P_FRICTION      # apparent (thread-form corrected) static coefficient mu_s' [-]
+P_MUK = P_FRICTION + 1  # apparent kinetic coefficient mu_k' [-]
+P_VST = P_FRICTION + 2  # Stribeck velocity v_st [m/s]
+P_DST = P_FRICTION + 3  # Stribeck exponent delta_st [-]
+P_MUV = P_FRICTION + 4  # apparent viscous slope mu_v' [s/m]
+P_ZCUT = P_FRICTION + 5  # Stribeck cut-off in units of |v| / v_st [-], see _stribeck_cut
+N_SLOTS = 6             # slots used; the rest of the block is spare
+assert N_SLOTS <= N_FRICTION, 'the friction law outgrew layout.N_FRICTION'
+
+
+def pack_apparent(v, mu_s, mu_k, mu_v, v_st, delta_st):
+    """
+    Fill the friction block of the parameter vector v from the law's coefficients.
+
+    mu_s, mu_k, mu_v are the apparent (thread-form corrected) ones, mu'.
+    """
+    v[P_MUS] = mu_s
+    v[P_MUK] = mu_k
+    v[P_VST] = v_st
+    v[P_DST] = delta_st
+    v[P_MUV] = mu_v
+    v[P_ZCUT] = _stribeck_cut(v[P_MUK], v[P_MUS] - v[P_MUK], v[P_DST])
+
+
+def pack_friction(p, v):
+    """Fill the friction block of the parameter vector v from ScrewParams p."""
+    tf = p.thread_factor
+    pack_apparent(v, p.mu_s * tf, p.mu_k * tf, p.mu_viscous * tf, p.stribeck_velocity,
+                  p.stribeck_exponent)
+
+
+@kernel_jit
+def friction_constants(P):
+    """
+    Return the law's constants fc = (muk, muv, drop, vst, ivst, dst, zcut) from P.
+
+    drop = mu_s' - mu_k' and ivst = 1 / v_st [s/m]; the others are the slots.
+    """
+    muk = P[P_MUK]
+    muv = P[P_MUV]
+    drop = P[P_MUS] - P[P_MUK]
+    vst = P[P_VST]
+    dst = P[P_DST]
+    zcut = P[P_ZCUT]
+    ivst = 1.0 / vst
+    return (muk, muv, drop, vst, ivst, dst, zcut)
 
 
 @kernel_jit
@@ -20,26 +80,27 @@ def mu_apparent(P, v):
     The plain formula of physics.md section 6; the kernel uses _mu, the same law
     with a bit-exact shortcut, tested against this one.
     """
+    muk, muv, drop, vst, _, dst, _ = friction_constants(P)
     a = abs(v)
-    mu = P[P_MUK] + P[P_MUV] * a
-    drop = P[P_MUS] - P[P_MUK]
+    mu = muk + muv * a
     if drop != 0.0:
-        z = a / P[P_VST]
-        if P[P_DST] != 1.0:
-            z = z ** P[P_DST]
+        z = a / vst
+        if dst != 1.0:
+            z = z ** dst
         mu += drop * math.exp(-z)
     return mu if mu > 0.0 else 0.0
 
 
 @kernel_jit
-def _mu(muk, muv, drop, vst, dst, zcut, v):
+def _mu(fc, v):
     """
-    Apparent Stribeck coefficient mu'(|v|) >= 0 from unpacked parameters.
+    Apparent Stribeck coefficient mu'(|v|) >= 0 from the law's constants fc.
 
     The Stribeck term is skipped where it cannot change the sum: for
     |v| / v_st > zcut (see _stribeck_cut) and a sum not below mu_k, it is less
     than half an ulp of the sum, so the result is bit-identical to mu_apparent.
     """
+    muk, muv, drop, vst, _, dst, zcut = fc
     a = abs(v)
     mu = muk + muv * a
     if drop != 0.0:
@@ -52,13 +113,14 @@ def _mu(muk, muv, drop, vst, dst, zcut, v):
 
 
 @kernel_jit
-def _mu_lower(muk, muv, drop, ivst, dst, v):
+def _mu_lower(fc, v):
     """
-    Return a lower bound of _mu(v) without exp() or division: exp(-z) >= max(0, 1 - z).
+    Return a lower bound of _mu(fc, v) without exp() or division: exp(-z) >= max(0, 1 - z).
 
-    ivst = 1 / v_st. The 2e-15 |drop| margin (9 ulp) covers the rounding of
-    1 - z and of the reciprocal against that of exp(-z) in _mu.
+    It uses ivst = 1 / v_st. The 2e-15 |drop| margin (9 ulp) covers the
+    rounding of 1 - z and of the reciprocal against that of exp(-z) in _mu.
     """
+    muk, muv, drop, _, ivst, dst, _ = fc
     mu = muk + muv * abs(v)
     if drop > 0.0:
         z = abs(v) * ivst
@@ -85,13 +147,13 @@ def _stribeck_cut(muk, drop, dst):
 
 
 @kernel_jit
-def _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl):
+def _thread_limit(load, vs, fc, hcl):
     """Exact impulse limit [N s] of a thread: mu'(vs) load h / cos(lambda); hcl = h / cos."""
-    return _mu(muk, muv, drop, vst, dst, zcut, vs) * load * hcl
+    return _mu(fc, vs) * load * hcl
 
 
 @kernel_jit
-def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hcl_lo):
+def _thread_limits(load, mode, vs, fc, hcl, hcl_lo):
     """
     Return (limit, lower bound) [N s] of a thread's friction impulse.
 
@@ -102,7 +164,7 @@ def _thread_limits(load, mode, vs, muk, muv, drop, vst, ivst, dst, zcut, hcl, hc
     if load <= 0.0:
         return 0.0, 0.0
     if mode == 0:
-        lo = _mu_lower(muk, muv, drop, ivst, dst, vs) * load * hcl_lo
+        lo = _mu_lower(fc, vs) * load * hcl_lo
         if lo > 0.0:
             return -1.0, lo
-    return _thread_limit(load, vs, muk, muv, drop, vst, dst, zcut, hcl), 0.0
+    return _thread_limit(load, vs, fc, hcl), 0.0

@@ -23,15 +23,15 @@ import math
 import numpy as np
 
 from ._jit import kernel_jit
-from .friction import _thread_limit, _thread_limits
+from .friction import _thread_limit, _thread_limits, friction_constants
 from .lcp import _box1, _box2, _friction_lcp, _solve2, _solve_free
 from .layout import (
     IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL, MAXE, NO,
     O_CONTA, O_CONTB, O_FAX, O_FFA, O_FFB, O_FG, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB,
     O_STICKA, O_STICKB, O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
-    P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_DST, P_FEXT, P_FP, P_FX0, P_GS,
-    P_JM, P_JS, P_K, P_KC, P_KES, P_KP, P_MA, P_MB, P_MUC, P_MUK, P_MUS, P_MUV, P_RC,
-    P_RCOL, P_RIGID, P_RT, P_SL, P_TAU, P_TMAX, P_TS0, P_VST, P_XMAX, P_XMIN, P_ZCUT,
+    P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_FEXT, P_FP, P_FX0, P_GS, P_JM,
+    P_JS, P_K, P_KC, P_KES, P_KP, P_MA, P_MB, P_MUC, P_RC, P_RCOL, P_RIGID, P_RT, P_SL,
+    P_TAU, P_TMAX, P_TS0, P_XMAX, P_XMIN,
     REC_ROW, REC_STATE,
     S_DQ, S_EDAMP, S_EFRIC, S_FAPREV, S_MODE0, S_NSEARCH, S_Q, S_QM, S_T, S_TE, S_VA,
     S_VB, S_WEXT, S_WIN, S_WM, S_XA, S_XB,
@@ -78,7 +78,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     Parameters are unpacked once per call and the state lives in local scalars
     within a step. One or two active friction elements are solved by the
     scalar _box1/_box2, three or four by the general box LCP on the workspace
-    arrays; all give the same impulses (test/test_kernel_lcp.py).
+    arrays; all give the same impulses (test/core/test_kernel_lcp.py).
 
     Friction elements, in this order: a thread of nut A, b thread of half-nut B,
     c screw bearing plus thrust collar, g nut guide (ids 0, 1, 2, 3). Bodies:
@@ -96,8 +96,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
       cs, cx: bearing [N m s/rad] and guide [N s/m] viscous damping
       ma, mb: masses of nut A (with payload) and half-nut B [kg]
       kes, ces, xmin, xmax: end stops of nut A [N/m], [N s/m], [m], [m]
-      muk, muv, drop, vst, ivst, dst, zcut: friction law, see friction._mu
-        (drop = mu_s' - mu_k', ivst = 1 / vst [s/m])
+      fc: the thread friction law's constants (friction.friction_constants)
       hcl, hcl_lo: h / cos(lambda) [s], and less 1e-14 relative for the stick bound
       f_pre, k_pre: anti-backlash preload [N] and spring stiffness [N/m]
       ts0: bearing Coulomb torque [N m];  mu_r_col: collar mu times radius [m]
@@ -171,13 +170,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
     ces = P[P_CES]
     xmin = P[P_XMIN]
     xmax = P[P_XMAX]
-    muk = P[P_MUK]
-    muv = P[P_MUV]
-    drop = P[P_MUS] - P[P_MUK]
-    vst = P[P_VST]
-    dst = P[P_DST]
-    zcut = P[P_ZCUT]
-    ivst = 1.0 / vst
+    fc = friction_constants(P)
     # Limits are mu' N h / cos(lambda); the stick bound uses h / cos(lambda) less 1e-14,
     # so its limit stays below the exact one whatever the rounding of either.
     hcl = h / cl
@@ -306,10 +299,8 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
             load_b = flo_b + fup_b
             vs_a = rc * dq0 + sl * va0
             vs_b = rc * dq0 + sl * vb0
-            lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, muk, muv, drop, vst, ivst, dst,
-                                         zcut, hcl, hcl_lo)
-            lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, muk, muv, drop, vst, ivst, dst,
-                                         zcut, hcl, hcl_lo)
+            lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, fc, hcl, hcl_lo)
+            lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, fc, hcl, hcl_lo)
             lim_c = h * (ts0 + mu_r_col * abs(faprev))
             nact = (lim_a != 0.0) + (lim_b != 0.0) + (lim_c > 0.0) + (lim_g > 0.0)
             imp_a = imp_b = imp_c = imp_g = 0.0   # impulses of thread A, thread B, bearing, guide
@@ -320,7 +311,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                 if lim_a < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
                     imp_a = vfree_a * nrecip_w_aa
                     if abs(imp_a) > lo_a * (1.0 + 1e-9):
-                        lim_a = _thread_limit(load_a, vs_a, muk, muv, drop, vst, dst, zcut, hcl)
+                        lim_a = _thread_limit(load_a, vs_a, fc, hcl)
                         imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, 0)
                 else:
                     imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, mode_a)
@@ -346,8 +337,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                         mode1 = 0
                         if abs(imp1) > lo_of[e1] * (1.0 + 1e-9):
                             lim1 = _thread_limit(load_a if e1 == 0 else load_b,
-                                                 vs_a if e1 == 0 else vs_b,
-                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                                                 vs_a if e1 == 0 else vs_b, fc, hcl)
                             imp1, mode1, searched = _box1(w1, vfree1, lim1, 0)
                     else:
                         imp1, mode1, searched = _box1(w1, vfree1, lim1, mode_of[e1])
@@ -367,12 +357,10 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                     if not ok:
                         if lim1 < 0.0:
                             lim1 = _thread_limit(load_a if e1 == 0 else load_b,
-                                                 vs_a if e1 == 0 else vs_b,
-                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                                                 vs_a if e1 == 0 else vs_b, fc, hcl)
                         if lim2 < 0.0:
                             lim2 = _thread_limit(load_a if e2 == 0 else load_b,
-                                                 vs_a if e2 == 0 else vs_b,
-                                                 muk, muv, drop, vst, dst, zcut, hcl)
+                                                 vs_a if e2 == 0 else vs_b, fc, hcl)
                         imp1, imp2, mode1, mode2, searched = _box2(
                             w1, w12, w2, vfree1, vfree2, lim1, lim2, mode_of[e1], mode_of[e2])
                 if searched:
@@ -387,9 +375,9 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                 mode_g = mode1 if e1 == 3 else (mode2 if e2 == 3 else mode_g)
             elif nact > 2:   # the general box LCP on the workspace arrays
                 if lim_a < 0.0:
-                    lim_a = _thread_limit(load_a, vs_a, muk, muv, drop, vst, dst, zcut, hcl)
+                    lim_a = _thread_limit(load_a, vs_a, fc, hcl)
                 if lim_b < 0.0:
-                    lim_b = _thread_limit(load_b, vs_b, muk, muv, drop, vst, dst, zcut, hcl)
+                    lim_b = _thread_limit(load_b, vs_b, fc, hcl)
                 W = wk[WK_W:WK_V0].reshape((MAXE, MAXE))
                 v0 = wk[WK_V0:WK_LIM]
                 lim = wk[WK_LIM:WK_P]

@@ -5,6 +5,11 @@ Every index is a named constant; angles, rates and torques are in the "q sense"
 of physics.md section 3 (q = hand * theta, so x = r_m tan(lambda) q for both
 hands). Each constant's comment gives the meaning and unit of its slot.
 The workspace offsets are derived from the sizes of the blocks they hold.
+
+The friction law's constants fill one block of P, N_FRICTION slots from
+P_FRICTION, the last block so that it can grow without moving other slots;
+friction.py alone assigns the slots inside it (pack_friction writes them,
+friction_constants reads them), so the kernel never names them.
 """
 
 # Parameter vector P (float64[NP]) ---------------------------------------------
@@ -12,40 +17,36 @@ P_RT = 0        # r_m tan(lambda): nut travel per screw radian [m/rad]
 P_RC = 1        # r_m cos(lambda): sliding-velocity arm of the screw rate [m/rad]
 P_SL = 2        # sin(lambda) [-]
 P_CL = 3        # cos(lambda) [-]
-P_MUS = 4       # apparent (thread-form corrected) static friction coefficient mu_s' [-]
-P_MUK = 5       # apparent kinetic friction coefficient mu_k' [-]
-P_VST = 6       # Stribeck velocity v_st [m/s]
-P_DST = 7       # Stribeck exponent delta_st [-]
-P_MUV = 8       # apparent viscous friction slope mu_v' [s/m]
-P_B = 9         # axial backlash b, total free play [m]
-P_K = 10        # thread contact stiffness [N/m]
-P_C = 11        # thread contact damping [N s/m]
-P_JM = 12       # motor rotor inertia [kg m^2]
-P_JS = 13       # screw inertia [kg m^2]
-P_KC = 14       # coupling stiffness [N m/rad]
-P_CC = 15       # coupling damping [N m s/rad]
-P_RIGID = 16    # 1.0: rigid coupling (motor and screw one body), 0.0: compliant
-P_CS = 17       # screw bearing viscous damping [N m s/rad]
-P_TS0 = 18      # screw bearing Coulomb torque [N m]
-P_MUC = 19      # thrust collar friction coefficient [-]
-P_RCOL = 20     # thrust collar mean friction radius [m]
-P_MA = 21       # mass of nut A plus payload [kg]
-P_MB = 22       # mass of the anti-backlash half-nut B [kg]
-P_CX = 23       # nut guide viscous damping [N s/m]
-P_FX0 = 24      # nut guide Coulomb force [N]
-P_GS = 25       # g sin(inclination), gravity along +x [m/s^2]
-P_KES = 26      # end stop stiffness [N/m]
-P_CES = 27      # end stop damping [N s/m]
-P_XMIN = 28     # lower end stop position of nut A [m]
-P_XMAX = 29     # upper end stop position of nut A [m]
-P_TMAX = 30     # motor torque saturation [N m]
-P_TAU = 31      # motor torque lag time constant [s]; <= 0: no lag
-P_AB = 32       # 1.0: split anti-backlash nut (body B active), 0.0: single nut
-P_FP = 33       # anti-backlash preload force [N]
-P_KP = 34       # anti-backlash spring stiffness [N/m]
-P_FEXT = 35     # constant external axial force on nut A [N]
-P_ZCUT = 36     # Stribeck cut-off in units of |v| / v_st [-], see friction._stribeck_cut
-NP = 37         # length of P
+P_B = 4         # axial backlash b, total free play [m]
+P_K = 5         # thread contact stiffness [N/m]
+P_C = 6         # thread contact damping [N s/m]
+P_JM = 7        # motor rotor inertia [kg m^2]
+P_JS = 8        # screw inertia [kg m^2]
+P_KC = 9        # coupling stiffness [N m/rad]
+P_CC = 10       # coupling damping [N m s/rad]
+P_RIGID = 11    # 1.0: rigid coupling (motor and screw one body), 0.0: compliant
+P_CS = 12       # screw bearing viscous damping [N m s/rad]
+P_TS0 = 13      # screw bearing Coulomb torque [N m]
+P_MUC = 14      # thrust collar friction coefficient [-]
+P_RCOL = 15     # thrust collar mean friction radius [m]
+P_MA = 16       # mass of nut A plus payload [kg]
+P_MB = 17       # mass of the anti-backlash half-nut B [kg]
+P_CX = 18       # nut guide viscous damping [N s/m]
+P_FX0 = 19      # nut guide Coulomb force [N]
+P_GS = 20       # g sin(inclination), gravity along +x [m/s^2]
+P_KES = 21      # end stop stiffness [N/m]
+P_CES = 22      # end stop damping [N s/m]
+P_XMIN = 23     # lower end stop position of nut A [m]
+P_XMAX = 24     # upper end stop position of nut A [m]
+P_TMAX = 25     # motor torque saturation [N m]
+P_TAU = 26      # motor torque lag time constant [s]; <= 0: no lag
+P_AB = 27       # 1.0: split anti-backlash nut (body B active), 0.0: single nut
+P_FP = 28       # anti-backlash preload force [N]
+P_KP = 29       # anti-backlash spring stiffness [N/m]
+P_FEXT = 30     # constant external axial force on nut A [N]
+P_FRICTION = 31  # index of the first slot of the friction law's block
+N_FRICTION = 10  # slots of the block: the Stribeck law uses 6, 4 are spare
+NP = P_FRICTION + N_FRICTION    # length of P
 
 # State vector S (float64[NS]) -------------------------------------------------
 S_QM = 0        # motor angle [rad]

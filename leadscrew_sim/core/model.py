@@ -55,17 +55,11 @@ class StepOutput:
 def pack_params(p):
     """Flatten ScrewParams into the kernel's parameter vector."""
     lam = p.lead_angle
-    tf = p.thread_factor
     v = np.zeros(L.NP)
     v[L.P_RT] = p.r_m * math.tan(lam)
     v[L.P_RC] = p.r_m * math.cos(lam)
     v[L.P_SL] = math.sin(lam)
     v[L.P_CL] = math.cos(lam)
-    v[L.P_MUS] = p.mu_s * tf
-    v[L.P_MUK] = p.mu_k * tf
-    v[L.P_VST] = p.stribeck_velocity
-    v[L.P_DST] = p.stribeck_exponent
-    v[L.P_MUV] = p.mu_viscous * tf
     v[L.P_B] = p.backlash
     v[L.P_K] = p.contact_stiffness
     v[L.P_C] = p.contact_damping
@@ -93,7 +87,7 @@ def pack_params(p):
     v[L.P_FP] = p.preload_force
     v[L.P_KP] = p.preload_stiffness
     v[L.P_FEXT] = p.external_force
-    v[L.P_ZCUT] = F._stribeck_cut(v[L.P_MUK], v[L.P_MUS] - v[L.P_MUK], v[L.P_DST])
+    F.pack_friction(p, v)
     return v
 
 
