@@ -302,7 +302,7 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
             lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, fc, hcl, hcl_lo)
             lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, fc, hcl, hcl_lo)
             lim_c = h * (ts0 + mu_r_col * abs(faprev))
-            nact = (lim_a != 0.0) + (lim_b != 0.0) + (lim_c > 0.0) + (lim_g > 0.0)
+            nact = int(lim_a != 0.0) + int(lim_b != 0.0) + int(lim_c > 0.0) + int(lim_g > 0.0)
             imp_a = imp_b = imp_c = imp_g = 0.0   # impulses of thread A, thread B, bearing, guide
             a_alone = nact == 1 and lim_a != 0.0
             if a_alone:   # thread A alone, the common case, without the tables below

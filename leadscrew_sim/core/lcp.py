@@ -6,7 +6,7 @@ impulses p, and a limit lim_j >= 0: either |p_j| <= lim_j with v_j = 0 (stuck,
 mode 0) or p_j = mode_j lim_j with mode_j v_j <= 0 (sliding, mode -1 or +1).
 _solve_free and _friction_lcp solve it on arrays for any n <= MAXE;
 _box1 (n = 1) and _solve2/_box2 (n = 2) are scalar versions with the same
-arithmetic, so all give bit-identical impulses (test/test_kernel_lcp.py).
+arithmetic, so all give bit-identical impulses (test/core/test_kernel_lcp.py).
 """
 from ._jit import kernel_jit
 
