@@ -122,11 +122,10 @@ def test_stick_bound_never_exceeds_exact_limit():
         dst = rng.choice([1.0, rng.uniform(0.3, 3.0)])
         v = rng.choice([0.0, 1.0, -1.0]) * 10.0 ** rng.uniform(-18, 0) * vst * 3
         h, cl, na = 10.0 ** rng.uniform(-6, -3), rng.uniform(0.8, 1.0), 10.0 ** rng.uniform(-3, 5)
-        zcut = F._stribeck_cut(muk, drop, dst)
+        fc = F.friction_constants(_pvec(muk, muk + drop, vst, dst, muv))
         hcl = h / cl
-        exact = F._thread_limit(na, v, muk, muv, drop, vst, dst, zcut, hcl)
-        lim, bound = F._thread_limits(na, 0, v, muk, muv, drop, vst, 1.0 / vst, dst, zcut,
-                                      hcl, hcl * (1.0 - 1e-14))
+        exact = F._thread_limit(na, v, fc, hcl)
+        lim, bound = F._thread_limits(na, 0, v, fc, hcl, hcl * (1.0 - 1e-14))
         if lim < 0.0:                     # the bound stands in for the limit
             assert 0.0 < bound <= exact
         else:                             # no usable bound: the exact limit itself
@@ -145,11 +144,11 @@ def test_stribeck_cut_is_exact():
         muv = rng.uniform(0.0, 0.5)
         zcut = F._stribeck_cut(muk, drop, dst)          # in units of |v| / v_st
         v = vst * zcut * rng.uniform(0.5, 3.0)          # both sides of the cut
-        assert F._mu(muk, muv, drop, vst, dst, zcut, v) == F.mu_apparent(
-            _pvec(muk, mus, vst, dst, muv), v)
+        P = _pvec(muk, mus, vst, dst, muv)
+        assert F._mu(F.friction_constants(P), v) == F.mu_apparent(P, v)
 
 
 def _pvec(muk, mus, vst, dst, muv):
     P = np.zeros(L.NP)
-    P[L.P_MUK], P[L.P_MUS], P[L.P_VST], P[L.P_DST], P[L.P_MUV] = muk, mus, vst, dst, muv
+    F.pack_apparent(P, mus, muk, muv, vst, dst)
     return P
