@@ -130,7 +130,18 @@ def run(args):
         raise CliError(f'{args.file}: no messages to play')
     used = sorted({m[1] for m in rec.messages})
     chan_meta = {c.topic: dict(c.metadata) for c in rec.channels.values()}
-    classes = {t: _message_class(rec.topic_types[t]) for t in used}
+    classes = {}
+    for t in used:
+        try:
+            classes[t] = _message_class(rec.topic_types[t])
+        except CliError as exc:
+            if args.topics:          # asked for by name: an error
+                raise
+            print(f'{PROG}: warning: skipping {t}: {exc}', file=sys.stderr)
+    if not classes:
+        raise CliError(f'{args.file}: no topic of an installed message type to play')
+    used = sorted(classes)
+    rec.messages = [m for m in rec.messages if m[1] in classes]
     import rclpy
     context = rclpy.Context()
     rclpy.init(args=[], context=context)

@@ -48,6 +48,10 @@ class RunSettings(Schema):
                                    0, 1000)
     publish_decimation: int = field(1, '-', 'publish the states every N-th step (/clock: '
                                     'every step)', 1, 100000)
+    publish_tf: bool = field(False, '-', 'publish robot_description (transient local), '
+                             '/tf_static and /tf from the URDF of the axis (for stacks without '
+                             'robot_state_publisher); recordings carry them in any case',
+                             read_only=True)
     record: bool = field(True, '-', 'record commands and states to an MCAP file')
     record_dir: str = field('runs', '-', 'directory of the MCAP recordings (start-up only: a '
                             'run-time change could point the writes anywhere)', read_only=True)

@@ -49,7 +49,11 @@ from ..core import ParameterError, ScrewParams
 from ..core.commands import COMMAND_LOG_TIME
 from ..core.faults import SimulationFault
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
+from ..io import tf as TF
+from ..io.description import DescriptionError, JointTree, render_urdf, xacro_args
 from ..io.messages import StateEncoder
+from ..io.qos import qos_profile_yaml
+from ..io.run_file import DESCRIPTION_TOPICS
 from ..io.recorder import Recorder
 from ..io.session import StorageOptions
 from ..io.topics import TOPICS
@@ -108,6 +112,7 @@ class LeadScrewSimNode(Node):
         self.loop = LoopStats(keep_all=bool(s.stats_file))
         self.recorder = Recorder(self.get_logger())
         self._build_interfaces()
+        self._build_description()
         self.add_pre_set_parameters_callback(integers_as_doubles)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         p = self.params
@@ -205,6 +210,46 @@ class LeadScrewSimNode(Node):
         self._make_serializers()
         self._pace_reset = True
 
+    def _build_description(self):
+        """Render the URDF; with publish_tf, publish it and create the TF publishers."""
+        self._tree = self._tf = None
+        self._desc_pubs = {}
+        try:
+            self._urdf = render_urdf(xacro_args(self.params, self.settings.joint_prefix))
+            self._tree = JointTree(self._urdf)
+        except (DescriptionError, ValueError) as exc:
+            self.get_logger().warn(f'no robot description (TF not published or recorded): '
+                                   f'{exc}')
+            return
+        self._tf = TF.TfEncoder(self._tree.moving_frames)
+        for key, (rel, type_name, _qos) in DESCRIPTION_TOPICS.items():
+            self._rec_topic[key] = self.resolve_topic_name(rel)
+        if not self.settings.publish_tf:
+            return
+        for key, (rel, type_name, qos) in DESCRIPTION_TOPICS.items():
+            try:
+                msg_type = message_class(type_name)
+            except ImportError:
+                self.get_logger().warn(f'publish_tf: {type_name} is not installed; {rel} is '
+                                       'recorded but not published')
+                continue
+            self._desc_pubs[key] = self.create_publisher(msg_type, rel, qos_profile(qos))
+        self._publish_description(self._sim_now())
+
+    def _description_messages(self, stamp_ns):
+        """Return [(key, bytes)] of robot_description and /tf_static at ``stamp_ns``."""
+        static = [(stamp_ns, p, c, t, r) for p, c, t, r in self._tree.static_transforms()]
+        return [('robot_description', TF.encode_string(self._urdf)),
+                ('/tf_static', TF.encode_tf_message(static))]
+
+    def _publish_description(self, stamp_ns, record=False):
+        """Publish (with publish_tf) and record (if ``record``) the description messages."""
+        for key, data in self._description_messages(stamp_ns):
+            if key in self._desc_pubs:
+                self._desc_pubs[key].publish(data)
+            if record and self.recorder.active:
+                self.recorder.write(self._rec_topic[key], data, stamp_ns)
+
     def _make_serializers(self):
         self._encoder = StateEncoder(self.settings.joint_prefix)
         self._ser_clock = self._encoder.clock
@@ -217,15 +262,21 @@ class LeadScrewSimNode(Node):
         the states are our exact encodings and need no check. The QoS is the
         recorder's default (reliable, keep last 10).
         """
-        return {self._rec_topic[topic]: (type_name, None, role == 'command')
-                for topic, (type_name, role, _qos) in TOPICS.items()
-                if topic in self._rec_topic}
+        chans = {self._rec_topic[topic]: (type_name, None, role == 'command')
+                 for topic, (type_name, role, _qos) in TOPICS.items()
+                 if topic in self._rec_topic}
+        if self._tree is not None:
+            for key, (_rel, type_name, qos) in DESCRIPTION_TOPICS.items():
+                chans[self._rec_topic[key]] = (type_name, qos_profile_yaml(**qos), False)
+        return chans
 
     def _start_recording(self):
         """Start a recording; log and return the file it writes (None if it failed)."""
         if not self.recorder.start(StorageOptions.from_run_settings(self.settings),
                                    self.recording_channels(), self.all_parameter_values()):
             return None
+        if self._tree is not None:
+            self._publish_description(self._sim_now(), record=True)
         path = self.recorder.wait_for_path(timeout=5.0)
         if path:
             self.get_logger().info(f'recording to {os.path.abspath(path)}')
@@ -304,8 +355,15 @@ class LeadScrewSimNode(Node):
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
 
     def _publish_states(self):
-        for topic, data in self._encoder.tick(self._sim_now(), self.model.joint_values()):
+        stamp, values = self._sim_now(), self.model.joint_values()
+        for topic, data in self._encoder.tick(stamp, values):
             self._emit(topic, data)
+        if self._tf is not None and (self.recorder.active or '/tf' in self._desc_pubs):
+            data = self._tf(stamp, self._tree.moving_values(values[0], values[1]))
+            if '/tf' in self._desc_pubs:
+                self._desc_pubs['/tf'].publish(data)
+            if self.recorder.active:
+                self.recorder.write(self._rec_topic['/tf'], data, stamp)
 
     def _emit(self, topic, data):
         """Publish the serialized state ``data`` on ``topic`` and record it."""

@@ -42,6 +42,9 @@ TYPES = {
     '/joint_states': 'sensor_msgs/msg/JointState',
     '/nut_position': 'std_msgs/msg/Float64',
     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
+    '/robot_description': 'std_msgs/msg/String',
+    '/tf_static': 'tf2_msgs/msg/TFMessage',
+    '/tf': 'tf2_msgs/msg/TFMessage',
 }
 
 #: Flush interval of the crash test [s]: the recorder child writes out the open
