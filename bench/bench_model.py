@@ -2,9 +2,11 @@
 Benchmark the physics core: ns per substep, real-time factor, and LSODA side by side.
 
 Run: make bench   (or: .venv/bin/python bench/bench_model.py [--seconds 20])
-Prints, in one run on this machine, for each preset at dt = 1 ms, no I/O, under two
-drives (zero torque: holding; a PD position loop tracking a sine: moving, reversing):
-- ns per substep (the full model: backlash + stiction + anti-backlash preset);
+Prints, in one run on this machine, for each preset at dt = 1 ms, no I/O, under three
+drives (zero torque: holding; a PD position loop tracking a sine: moving, reversing;
+the servo drive in position mode tracking the same sine):
+- ns per substep (the full model: backlash + stiction + anti-backlash preset), and for
+  the servo drive its ratio to the torque-mode track drive;
 - simulated seconds per wall second, per tick call and in one batch call;
 - the same smooth case integrated by our kernel and by scipy's solve_ivp (LSODA),
   with the wall time ratio.
@@ -16,7 +18,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from leadscrew_sim.core import kernel as K, layout as L
+from leadscrew_sim.core import drive as D, kernel as K, layout as L
 from leadscrew_sim import LeadScrewModel, load_preset, preset_names
 
 
@@ -78,6 +80,62 @@ def kernel_rate(params, torques, dt=1e-3, block=1000, repeats=3):
         batch / (n * m.nsub) * 1e9, sim_seconds / batch, stuck / n
 
 
+def drive_commands(params, sim_seconds, dt=1e-3, amplitude=0.05, freq=0.5):
+    """
+    Command rows of the servo drive in position mode tracking x = A sin(2 pi f t).
+
+    Theta sense (mode, motor angle target, velocity feed-forward, no torque
+    feed-forward), through the model's lead mapping; the target of each step is
+    the trajectory at its end.
+    """
+    m = LeadScrewModel(params, dt=dt)
+    n = int(sim_seconds / dt)
+    t = (np.arange(n) + 1) * dt
+    w = 2 * math.pi * freq
+    rows = np.empty((n, 4))
+    rows[:, 0] = D.MODE_POSITION
+    rows[:, 1] = m.nut_to_motor(amplitude * np.sin(w * t))
+    rows[:, 2] = m.nut_to_motor(amplitude * w * np.cos(w * t)) - m.nut_to_motor(0.0)
+    rows[:, 3] = math.nan
+    return rows
+
+
+def drive_rate(params, rows, dt=1e-3, block=1000, repeats=3):
+    """
+    Return kernel_rate's figures for the servo drive following command rows (theta sense).
+
+    Per-tick: the held target and feed-forward written into the state (two
+    float stores, as model.command leaves them), then one step_held call per
+    tick; batch: model.run(None, commands=...) on blocks of `block` ticks.
+    """
+    m = LeadScrewModel(params, dt=dt)
+    n = len(rows)
+    sim_seconds = n * dt
+    q_rows = m._command_rows(rows)             # q sense, as model.command stores them
+    targets = list(zip(q_rows[:, 1].tolist(), q_rows[:, 2].tolist()))
+    m.run(None, commands=rows[:2])             # compile, warm up both paths
+    K.step_held(m._P, m.state, m.out, 0.0, dt, m.nsub, m._wk, m._iwk)
+    wall = batch = math.inf
+    s = m.state
+    for _ in range(repeats):
+        m.reset()
+        m.command(D.MODE_POSITION, position=rows[0, 1])
+        t0 = time.perf_counter()
+        for q, w in targets:
+            s[L.S_CQ] = q
+            s[L.S_CW] = w
+            K.step_held(m._P, s, m.out, 0.0, dt, m.nsub, m._wk, m._iwk)
+        wall = min(wall, time.perf_counter() - t0)
+        m.reset()
+        stuck = 0
+        t0 = time.perf_counter()
+        for i in range(0, n, block):
+            stuck += int(np.count_nonzero(m.run(None, commands=rows[i:i + block])['stuck']))
+        batch = min(batch, time.perf_counter() - t0)
+    return wall / (n * m.nsub) * 1e9, sim_seconds / wall, m.nsub, \
+        batch / (n * m.nsub) * 1e9, sim_seconds / batch, stuck / n
+
+
 def lsoda_side_by_side(sim_seconds):
     """Integrate the same smooth sliding case with our kernel and with LSODA."""
     p = load_preset('tr8x8').replace(mu_s=0.12, mu_k=0.12, mu_viscous=0.5,
@@ -122,16 +180,27 @@ def main():
     print('per-step call = one kernel call per 1 ms tick (as the node does);')
     print('batch = model.run() on 1 s blocks, 1000 ticks per compiled call (as simulate does)')
     print('each column: best of 3 runs')
-    print('hold = zero torque; track = PD position loop, x = 50 mm sin(2 pi 0.5 Hz t)')
+    print('hold = zero torque; track = PD position loop, x = 50 mm sin(2 pi 0.5 Hz t);')
+    print('servo = the servo drive in position mode (velocity feed-forward) tracking the same;')
+    print('servo/track: its ns per substep over the track drive\'s (per-step call, batch)')
     print(f'{"preset":<15}{"drive":<7}{"substeps/ms":>12}{"ns/substep":>12}{"x real time":>13}'
-          f'{"batch ns/sub":>14}{"batch x rt":>12}{"stuck %":>9}')
+          f'{"batch ns/sub":>14}{"batch x rt":>12}{"stuck %":>9}{"servo/track":>13}')
     n = int(args.seconds / 1e-3)
     for name in preset_names():
         p = load_preset(name)
-        for drive, torques in (('hold', np.zeros(n)), ('track', track_torques(p, args.seconds))):
-            ns, rtf, nsub, bns, brtf, stuck = kernel_rate(p, torques)
+        figures = {}
+        for drive, torques in (('hold', np.zeros(n)), ('track', track_torques(p, args.seconds)),
+                               ('servo', None)):
+            if torques is None:
+                figures[drive] = drive_rate(p, drive_commands(p, args.seconds))
+            else:
+                figures[drive] = kernel_rate(p, torques)
+            ns, rtf, nsub, bns, brtf, stuck = figures[drive]
+            ratio = ''
+            if drive == 'servo':
+                ratio = f'{ns / figures["track"][0]:.2f} {bns / figures["track"][3]:.2f}'
             print(f'{name:<15}{drive:<7}{nsub:>12}{ns:>12.1f}{rtf:>13.0f}{bns:>14.1f}'
-                  f'{brtf:>12.0f}{100 * stuck:>9.1f}')
+                  f'{brtf:>12.0f}{100 * stuck:>9.1f}{ratio:>13}')
     ours, lsoda, dx, nfev = lsoda_side_by_side(min(args.seconds, 5.0))
     print(f'\nsmooth case, {min(args.seconds, 5.0)} s simulated: kernel {ours:.3f} s wall, '
           f'LSODA {lsoda:.3f} s wall ({nfev} RHS calls), ratio LSODA/kernel '

@@ -12,7 +12,7 @@ from pathlib import Path
 import struct
 
 from .args import CliError, NS, parse_sets, Progress
-from ..core.commands import CommandHold, REJECTED
+from ..core.commands import CommandHold, NutMap, REJECTED
 from ..core.params import ParameterError, ScrewParams
 from ..io import cdr as C, messages as M, topics as T
 from ..io.mcap_reader import Recording
@@ -78,6 +78,7 @@ class Resim:
             raise CliError(f'{rec.path}: bad run settings in the parameters record: '
                            f'{exc}') from None
         self.prefix = run_setting(meta, 'joint_prefix', '')
+        self.joint_command_mode = run_setting(meta, 'joint_command_mode', 'auto')
         self.clock_mode = run_setting(meta, 'clock_mode', '')
         self.topics = {rel: rec.role_topic(rel) for rel in T.COMMAND_TOPICS + T.STATE_TOPICS}
         self.events = []            # (log_time [ns], kind, payload) in log-time order
@@ -136,7 +137,8 @@ class Resim:
         """
         from ..core.model import LeadScrewModel
         model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
-        hold = CommandHold(self.prefix, self.timeout if self.clock_mode != 'realtime' else 0.0)
+        hold = CommandHold(self.prefix, self.timeout if self.clock_mode != 'realtime' else 0.0,
+                           NutMap.of_model(model), self.joint_command_mode)
         events, ne, ie = self.events, len(self.events), 0
         dt_ns, t0, dec = self.dt_ns, self.t0, self.decimation
         new_states = {}
@@ -151,8 +153,11 @@ class Resim:
                 if writer is not None and kind in writer.ids:
                     writer.write(writer.ids[kind], data, log_time)
                 self._apply(kind, data, t_k, hold, model)
+            command = hold.changed_command(t_k)
+            if command is not None:
+                model.command(*command)
             try:
-                model.advance(hold.applied_torque(t_k), None, hold.force)
+                model.advance_held(hold.force)
             except FloatingPointError as exc:
                 raise CliError(f'simulation fault at step {k}: {exc}') from None
             if (k + 1) % dec == 0 or keep:
@@ -171,9 +176,13 @@ class Resim:
         """Apply one event at step time ``t_k`` [ns]; count the rejected commands."""
         if kind == 'torque_command':
             self.rejected += hold.torque_command(C.decode_float64(data), t_k) is not None
+        elif kind == 'velocity_command':
+            self.rejected += hold.velocity_command(C.decode_float64(data), t_k) is not None
+        elif kind == 'position_command':
+            self.rejected += hold.position_command(C.decode_float64(data), t_k) is not None
         elif kind == 'joint_commands':
-            _s, names, _p, _v, eff = C.decode_joint_state(data)
-            self.rejected += hold.joint_commands(names, eff, t_k)[0] == REJECTED
+            _s, names, pos, vel, eff = C.decode_joint_state(data)
+            self.rejected += hold.joint_commands(names, pos, vel, eff, t_k)[0] == REJECTED
         elif kind == 'external_force':
             self.rejected += hold.external_force(C.decode_float64(data)) is not None
         elif kind == UPDATE_RECORD:

@@ -15,7 +15,8 @@ import time
 import numpy as np
 
 from .args import CliError, DEFAULT_PRESET, load_params, NS, parse_sets, Progress
-from .sources import make_force_source, make_torque_source
+from .sources import make_drive_source, make_force_source, make_torque_source
+from ..core.commands import CommandHold, NutMap
 from ..io import cdr as C, messages as M
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter
 
@@ -39,8 +40,17 @@ def add_arguments(p):
     p.add_argument('--rate', type=float, help='update rate [Hz], dt = 1/rate (default 1000)')
     p.add_argument('--torque', type=float, help='constant motor torque [N m]')
     p.add_argument('--torque-csv', help='CSV time,torque [s, N m], zero-order hold')
-    p.add_argument('--profile', choices=('step', 'ramp', 'sine', 'move'),
-                   help='torque profile (move: PD position control to --target)')
+    p.add_argument('--profile', choices=('step', 'ramp', 'sine', 'move', 'trapezoid'),
+                   help='torque profile (move: PD position control to --target), or '
+                        'trapezoid: a trapezoidal move to --target through the drive\'s '
+                        'position loop (--speed, --accel)')
+    p.add_argument('--velocity', type=float, help='constant nut velocity command [m/s] '
+                   '(the drive\'s velocity mode)')
+    p.add_argument('--velocity-csv', help='CSV time,velocity [s, m/s], zero-order hold')
+    p.add_argument('--position', type=float, help='constant nut position target [m] '
+                   '(the drive\'s position mode)')
+    p.add_argument('--position-csv', help='CSV time,position [s, m], zero-order hold')
+    p.add_argument('--accel', type=float, default=0.1, help='trapezoid acceleration [m/s^2]')
     p.add_argument('--amplitude', type=float, help='profile torque amplitude [N m] '
                    '(default max_torque/2)')
     p.add_argument('--frequency', type=float, default=1.0, help='sine frequency [Hz]')
@@ -68,9 +78,15 @@ def run(args):
     prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))
     dt_ns = int(round(NS / rate))
     n_steps = int(round(args.duration * NS / dt_ns))
-    torque_fn, torque_desc = make_torque_source(args, params)
+    drive = make_drive_source(args, params)
+    if drive is None:
+        torque_fn, torque_desc = make_torque_source(args, params)
+    else:
+        torque_fn, torque_desc = drive[0], drive[2]
     force_fn, force_desc = make_force_source(args)
     model = LeadScrewModel(params, dt=dt_ns / NS)
+    if drive is not None:
+        torque_fn = DriveInput(drive[0], drive[1], model, prefix)
     out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
     w = RunWriter(out, prefix, clock=args.clock, params=params)
     w.rec.add_metadata(PARAMS_RECORD, parameters_record(
@@ -120,7 +136,9 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
                 changes.append(k)
             forces.append(f)
             force = f
-        if needs_state:
+        if isinstance(torque_fn, DriveInput):
+            torques, cols = torque_fn.block(ks, dt_ns, forces)
+        elif needs_state:
             torques, cols = _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm,
                                                vm_scale)
         else:
@@ -181,10 +199,14 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
     t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
     t_state = t_cmd + dt_ns
     states = enc.rows(t_state, cols)
-    rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)])]
+    if isinstance(torques, tuple):            # a drive input: (topic, message rows)
+        rows, chans = [torques[1]], [ids[torques[0]]]
+    else:
+        rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)])]
+        chans = [ids['torque_command']]
     rows += [r for _topic, r in states]
     times = [t_cmd] + [t_state] * len(states)
-    chans = [ids['torque_command']] + [ids[topic] for topic, _r in states]
+    chans += [ids[topic] for topic, _r in states]
     if w.tf is not None:
         rows.append(w.tf_rows(t_state, cols[0], cols[1]))
         times.append(t_state)
@@ -206,3 +228,50 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
         w.rec.write_rows(chans[1:], [r[i:i + 1] for r in rows[1:]],
                          [t[i:i + 1] for t in times[1:]])
         a = i + 1
+
+
+class DriveInput:
+    """
+    A velocity or position input through the drive, run block-wise in one compiled call.
+
+    Each tick's command goes through :class:`CommandHold`, the rules the node
+    and ``resim`` apply to the recorded message, so all three hand the model
+    the same doubles; the messages are recorded on ``topic``.
+    """
+
+    def __init__(self, fn, topic, model, prefix):
+        """Keep the source ``fn(t) -> (x, v)``, the command topic and the model."""
+        self.fn, self.topic, self.model = fn, topic, model
+        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model))
+        self.joint = prefix + 'nut_joint'
+        self.template = C.joint_state_template([self.joint], 1, 1, 0)
+
+    def block(self, ks, dt_ns, forces):
+        """Run ticks ``ks``; return ((topic, message rows), the :data:`COLUMNS`)."""
+        n = len(ks)
+        commands = np.empty((n, 4))
+        xs, vs = np.empty(n), np.empty(n)
+        hold = self.hold
+        for i, k in enumerate(ks):
+            t_ns = k * dt_ns
+            x, v = self.fn(t_ns / NS)
+            xs[i], vs[i] = x, v
+            if self.topic == 'velocity_command':
+                reason = hold.velocity_command(v, t_ns)
+            elif self.topic == 'position_command':
+                reason = hold.position_command(x, t_ns)
+            else:
+                reason = hold.joint_commands([self.joint], [x], [v], [], t_ns)[1]
+            if reason:
+                raise CliError(f'drive input at t={t_ns / NS:.6f} s: {reason}')
+            commands[i] = hold.command_at(t_ns)
+        try:
+            r = self.model.run(None, forces, commands=commands)
+        except FloatingPointError as exc:
+            raise CliError(f'simulation fault: {exc}') from None
+        t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+        if self.topic == 'joint_commands':
+            rows = self.template.rows(t_cmd, [xs, vs])
+        else:
+            rows = C.F64_TEMPLATE.rows(None, [vs if self.topic == 'velocity_command' else xs])
+        return (self.topic, rows), [r[name] for name in COLUMNS]

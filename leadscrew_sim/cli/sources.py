@@ -1,4 +1,4 @@
-"""The inputs of ``simulate``: motor torque and external force sources, CSV series."""
+"""The inputs of ``simulate``: torque, drive (velocity, position) and force sources, CSV series."""
 import bisect
 import math
 
@@ -208,3 +208,97 @@ def _check_force(what, value):
     reason = CommandHold().external_force(value)
     if reason is not None:
         raise CliError(f'{what}: {reason}')
+
+
+class Trapezoid:
+    """
+    A trapezoidal move of the nut from ``x0`` to ``target``: position [m] and velocity [m/s].
+
+    Accelerates at ``accel`` to ``speed``, cruises, decelerates to rest at the
+    target (a triangle when the distance is too short to reach ``speed``).
+    """
+
+    def __init__(self, x0, target, speed, accel):
+        """Precompute the phases."""
+        self.x0, self.d = x0, target - x0
+        self.sign = 1.0 if self.d >= 0 else -1.0
+        dist = abs(self.d)
+        self.a = accel
+        self.v = min(speed, math.sqrt(dist * accel))        # peak speed
+        self.t1 = self.v / accel                            # end of acceleration
+        self.t2 = self.t1 + (dist - self.v * self.t1) / self.v if self.v > 0 else 0.0
+        self.t3 = self.t2 + self.t1                         # at the target
+
+    def __call__(self, t):
+        """Return (position [m], velocity [m/s]) at time t [s]."""
+        a, v, t1, t2, t3 = self.a, self.v, self.t1, self.t2, self.t3
+        if t <= 0.0:
+            s, w = 0.0, 0.0
+        elif t < t1:
+            s, w = 0.5 * a * t * t, a * t
+        elif t < t2:
+            s, w = 0.5 * v * t1 + v * (t - t1), v
+        elif t < t3:
+            r = t3 - t
+            s, w = abs(self.d) - 0.5 * a * r * r, a * r
+        else:
+            s, w = abs(self.d), 0.0
+        return self.x0 + self.sign * s, self.sign * w
+
+
+def make_drive_source(args, params):
+    """
+    Return the drive input of simulate as (fn, topic, description), or None for a torque input.
+
+    ``fn(t)`` returns (nut position [m] or NaN, nut velocity [m/s] or NaN) at t [s];
+    ``topic`` is the command topic it is recorded on: ``velocity_command``,
+    ``position_command``, or ``joint_commands`` (nut joint position and velocity
+    feed-forward, for the trapezoidal move).
+    """
+    nan = float('nan')
+    chosen = [n for n, v in (('--velocity', args.velocity), ('--velocity-csv', args.velocity_csv),
+                             ('--position', args.position), ('--position-csv', args.position_csv))
+              if v is not None]
+    if args.profile == 'trapezoid':
+        chosen.append('--profile trapezoid')
+    if not chosen:
+        return None
+    torque = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv))
+              if v is not None]
+    if args.profile not in (None, 'trapezoid'):
+        torque.append(f'--profile {args.profile}')
+    if len(chosen) + len(torque) > 1:
+        raise CliError(f'give only one input, not {" and ".join(chosen + torque)}')
+    if args.velocity is not None:
+        c = float(args.velocity)
+        check_finite('--velocity', c)
+        return (lambda t: (nan, c)), 'velocity_command', f'velocity={c}'
+    if args.position is not None:
+        c = float(args.position)
+        check_finite('--position', c)
+        _check_stroke('--position', c, params)
+        return (lambda t: (c, nan)), 'position_command', f'position={c}'
+    if args.velocity_csv is not None:
+        held = Held(*read_csv_series(args.velocity_csv, 'velocity'))
+        return (lambda t: (nan, held(t))), 'velocity_command', f'velocity_csv={args.velocity_csv}'
+    if args.position_csv is not None:
+        times, values = read_csv_series(args.position_csv, 'position')
+        for v in values:
+            _check_stroke(f'position CSV {args.position_csv}', v, params)
+        held = Held(times, values, before=params.initial_position)
+        return (lambda t: (held(t), nan)), 'position_command', f'position_csv={args.position_csv}'
+    target = args.target if args.target is not None else params.initial_position + 0.01
+    _check_stroke('--target', target, params)
+    for name, value in (('--speed', args.speed), ('--accel', args.accel)):
+        check_finite(name, value)
+        if not value > 0:
+            raise CliError(f'{name} {value} must be > 0')
+    move = Trapezoid(params.initial_position, target, args.speed, args.accel)
+    return move, 'joint_commands', (f'profile=trapezoid target={target} speed={args.speed} '
+                                    f'accel={args.accel}')
+
+
+def _check_stroke(what, x, params):
+    if not params.stroke_min <= x <= params.stroke_max:
+        raise CliError(f'{what} {x} m lies outside the stroke '
+                       f'[{params.stroke_min}, {params.stroke_max}] m')

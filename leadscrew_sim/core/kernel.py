@@ -13,30 +13,44 @@ the small box-constrained LCP exactly. A stuck element keeps its sliding
 velocity at zero to round-off, so a self-locking screw does not creep
 (no tanh or ramp regularisation).
 
+The servo drive (drive.py, physics.md section 10) runs inside the substep
+loop: in velocity, position and quick stop mode it updates the held motor
+torque command every m substeps; in torque mode it does not run and the
+step takes the torque path of the kernel without a drive.
+
 This module holds the integrator (_steps, with the flank contact law
-_flank_forces) and its entry points step and run_series, plus workspace().
-The array layouts are in layout, the friction law in friction, the LCP
-solvers in lcp; the compile options, shared by all, in _jit.
+_flank_forces) and its entry points step, step_held and run_series, plus
+workspace(). The array layouts are in layout, the friction law in friction,
+the drive's loop law in drive, the LCP solvers in lcp; the compile options,
+shared by all, in _jit.
 """
 import math
 
 import numpy as np
 
 from ._jit import kernel_jit
+from .drive import (
+    FAULT_FOLLOWING_ERROR, FAULT_NONE, FAULT_TORQUE_LIMIT, MODE_POSITION, MODE_QUICKSTOP,
+    MODE_TORQUE, update_period, velocity_loop,
+)
 from .friction import _thread_limit, _thread_limits, friction_constants
 from .lcp import _box1, _box2, _friction_lcp, _solve2, _solve_free
 from .layout import (
-    IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL, MAXE, NO,
-    O_CONTA, O_CONTB, O_FAX, O_FFA, O_FFB, O_FG, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB,
-    O_STICKA, O_STICKB, O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
-    P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_FEXT, P_FP, P_FX0, P_GS, P_JM,
-    P_JS, P_K, P_KC, P_KES, P_KP, P_MA, P_MB, P_MUC, P_RC, P_RCOL, P_RIGID, P_RT, P_SL,
-    P_TAU, P_TMAX, P_TS0, P_XMAX, P_XMIN,
+    IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL, MAXE, N_CMD, NO,
+    O_CONTA, O_CONTB, O_DFAULT, O_DFERR, O_DMODE, O_DTCMD, O_DWREF, O_FAX, O_FFA, O_FFB,
+    O_FG, O_HOME, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB, O_STICKA, O_STICKB, O_SWMAX, O_SWMIN,
+    O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
+    P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_DFEL, P_DKP, P_DKV, P_DQ0, P_DQSD,
+    P_DRATE, P_DSCALE, P_DTI, P_DTLT, P_DVMAX, P_DX0, P_FEXT, P_FP, P_FX0, P_GS, P_HOME,
+    P_HYST, P_JM, P_JS, P_K, P_KC, P_KES, P_KP, P_LMAX, P_LMIN, P_MA, P_MB, P_MUC, P_RC,
+    P_RCOL, P_RIGID, P_RT, P_SL, P_TAU, P_TMAX, P_TS0, P_XMAX, P_XMIN,
     REC_ROW, REC_STATE,
-    S_DQ, S_EDAMP, S_EFRIC, S_FAPREV, S_MODE0, S_NSEARCH, S_Q, S_QM, S_T, S_TE, S_VA,
-    S_VB, S_WEXT, S_WIN, S_WM, S_XA, S_XB,
-    WK_A, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC, WK_V0,
-    WK_W,
+    S_CMODE, S_CQ, S_CT, S_CW, S_DFAULT, S_DFERR, S_DINT, S_DMODE, S_DPHASE, S_DQ, S_DQREF,
+    S_DQS, S_DTLIM, S_DTOUT, S_DWQS, S_DWREF, S_EDAMP, S_EFRIC, S_FAPREV, S_HOME, S_MODE0,
+    S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_WEXT, S_WIN, S_WM,
+    S_XA, S_XB,
+    WK_A, WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC,
+    WK_V0, WK_W,
 )
 
 
@@ -65,15 +79,26 @@ def _flank_forces(gap, gap_rate, hb, k, c):
 
 
 @kernel_jit
-def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
+def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     """
     Advance S by one step of dt (nsub equal substeps) per entry of torques/forces.
 
     torques: commanded motor torques [N m] in the q sense; forces: external
-    axial forces on nut A [N] added to the parameter one. After step i, out
-    holds its outputs and rec[i] = S[:REC_STATE] + out. Returns
-    the number of steps done; fewer if a state became non-finite, with S and
-    out as they were before the failing step.
+    axial forces on nut A [N] added to the parameter one. cmds: drive
+    command rows (mode, q_ref [rad], w_cmd [rad/s], t_cmd [N m], q sense),
+    either none (shape (0, N_CMD): every step in torque mode with torques[i])
+    or one per step (row i becomes the held command of step i; torques is
+    then unused, the steps are as many as the shorter of the two). After step
+    i, out holds its outputs and rec[i] = S[:REC_STATE] + out. Returns the
+    number of steps done; fewer if a state became non-finite, with S and out
+    as they were before the failing step.
+
+    The drive (drive.py) runs in the substep loop while its mode is not torque:
+    every d_m substeps (phase counter d_phase, continuous across steps) it reads
+    its feedback at the one marked place, runs the position and velocity loops
+    and holds the new torque command t_sat until its next update. A torque mode
+    step takes the torque path: t_sat = clip(command), clamped to 0 by a latched
+    fault or toward a tripped limit switch, the same for every substep.
 
     Parameters are unpacked once per call and the state lives in local scalars
     within a step. One or two active friction elements are solved by the
@@ -110,6 +135,26 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
       nrecip_w_aa: -1 / (regularised w_aa), the stick impulse per unit velocity
       alpha: motor torque lag factor per substep [-]
       t_sat: saturated torque command [N m];  fext: total external force [N]
+      tmax: torque saturation [N m];  ncmd: number of command rows (0: torque mode)
+      drive (q sense): d_m: substeps per drive update;  td: drive period d_m h [s];
+        kp_d, kv_d, ki_d: K_p [1/s], K_v [N m s/rad], K_v / T_i [N m/rad] (0: no
+        integral);  vmax: velocity limit
+        [rad/s];  dw_qs: quick stop rate decrement per update [rad/s];  fel: following
+        error limit [rad];  tlt: torque limit time [s];  scale_fb: position feedback
+        from the linear scale;  q_ref0, x_ref0, irt: its reference angle [rad] and nut
+        position [m], 1 / rt [rad/m];  l_min, l_max, x_home, hyst: switch positions and
+        hysteresis [m]
+      c_mode, c_q, c_w, c_t: the held command (mode, q_ref [rad], w_cmd [rad/s],
+        t_cmd [N m]);  d_mode: active mode;  d_qref: active target [rad];  d_int:
+        integral I [rad];  d_tout: held drive torque command [N m];  d_phase: substeps
+        since the last update;  d_fault: latched fault code;  d_tlim: time at the torque
+        limit [s];  d_qs: quick stop 0 none, 1 requested, 2 ramping (or holding after
+        it);  d_wqs: quick stop ramp [rad/s];  d_ferr: following error [rad];  d_wref:
+        velocity reference [rad/s];  sw_min, sw_max, home: switch states
+      drive_on: the drive runs this step (mode not torque);  q_fb, w_fb: the drive's
+        feedback [rad], [rad/s];  w_ref, w_ff, t_ff: velocity reference and
+        feed-forwards;  w_lo, w_hi: bounds of w_ref [rad/s];  t_drv,
+        t_u: loop output clipped and unclipped [N m]
       qm, q, xa, xb: motor angle, screw angle [rad]; nut A, B positions [m]
       wm, dq, va, vb: motor rate, screw rate [rad/s]; nut A, B velocities [m/s]
       wm0, dq0, va0, vb0: the same at the start of the substep
@@ -205,9 +250,88 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
                w_ag, 0.0, 0.0, mi_a)
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     gs = P[P_GS]
-    for i in range(torques.shape[0]):
-        t_sat = min(max(torques[i], -P[P_TMAX]), P[P_TMAX])
+    tmax = P[P_TMAX]
+    # servo drive
+    ncmd = cmds.shape[0]
+    d_m = update_period(nsub, dt, P[P_DRATE])
+    td = d_m * h
+    kp_d = P[P_DKP]
+    kv_d = P[P_DKV]
+    ki_d = P[P_DKV] / P[P_DTI] if P[P_DTI] > 0.0 else 0.0
+    vmax = P[P_DVMAX]
+    dw_qs = P[P_DQSD] * td
+    fel = P[P_DFEL]
+    tlt = P[P_DTLT]
+    scale_fb = P[P_DSCALE] > 0.5
+    q_ref0 = P[P_DQ0]
+    x_ref0 = P[P_DX0]
+    irt = 1.0 / rt
+    l_min = P[P_LMIN]
+    l_max = P[P_LMAX]
+    x_home = P[P_HOME]
+    hyst = P[P_HYST]
+    n_steps = torques.shape[0] if ncmd == 0 else min(torques.shape[0], ncmd)
+    for i in range(n_steps):
         fext = P[P_FEXT] + forces[i]
+        # the held command: a row of cmds, or torque mode with torques[i]
+        if ncmd > 0:
+            c_mode = int(cmds[i, 0])
+            c_q = cmds[i, 1]
+            c_w = cmds[i, 2]
+            c_t = cmds[i, 3]
+        else:
+            c_mode = MODE_TORQUE
+            c_q = S[S_CQ]
+            c_w = S[S_CW]
+            c_t = torques[i]
+        d_mode = int(S[S_DMODE])
+        d_qref = S[S_DQREF]
+        d_int = S[S_DINT]
+        d_tout = S[S_DTOUT]
+        d_phase = int(S[S_DPHASE])
+        d_fault = int(S[S_DFAULT])
+        d_tlim = S[S_DTLIM]
+        d_qs = int(S[S_DQS])
+        d_wqs = S[S_DWQS]
+        d_ferr = S[S_DFERR]
+        d_wref = S[S_DWREF]
+        # the command takes effect: a quick stop once, any other mode at once
+        if c_mode == MODE_QUICKSTOP:
+            if d_qs == 0:
+                if d_mode == MODE_TORQUE:
+                    d_int = 0.0
+                    d_tlim = 0.0
+                d_mode = MODE_QUICKSTOP
+                d_qs = 1
+        else:
+            if d_mode == MODE_TORQUE and c_mode != MODE_TORQUE:   # the drive starts afresh
+                d_int = 0.0
+                d_tlim = 0.0
+            d_qs = 0
+            d_mode = c_mode
+            if c_mode == MODE_POSITION:
+                d_qref = c_q
+        # limit and home switches, as the end of the last step left them
+        sw_min = S[S_SWMIN] > 0.5
+        sw_max = S[S_SWMAX] > 0.5
+        drive_on = d_mode != MODE_TORQUE
+        # bounds of the velocity reference: the velocity limit, and 0 toward a tripped
+        # switch (rt > 0: w_ref < 0 moves the nut toward -x); one clip applies both
+        w_lo = 0.0 if sw_min else -vmax
+        w_hi = 0.0 if sw_max else vmax
+        w_ff = 0.0 if d_qs != 0 else c_w     # a quick stop and its hold: no feed-forwards
+        t_ff = 0.0 if d_qs != 0 else c_t
+        if drive_on:
+            t_sat = d_tout
+        else:   # torque mode: the command, saturated; off while faulted or toward a switch
+            t_sat = min(max(c_t, -P[P_TMAX]), P[P_TMAX])
+            if d_fault != FAULT_NONE:
+                t_sat = 0.0
+            if sw_min and t_sat < 0.0:
+                t_sat = 0.0
+            if sw_max and t_sat > 0.0:
+                t_sat = 0.0
+            d_tout = t_sat
         # state in locals
         qm = S[S_QM]
         q = S[S_Q]
@@ -233,6 +357,57 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
         imp_a = imp_b = imp_c = imp_g = 0.0
         sum_in = sum_ext = sum_damp = sum_fric = 0.0   # energy sums of the step (see below)
         for _ in range(nsub):
+            if drive_on:
+                if d_phase == 0:
+                    # ---- drive feedback: what the drive measures. Ideal (true) values now;
+                    # ---- a sensor model replaces exactly these two lines.
+                    q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
+                    w_fb = wm
+                    # ---- end of the drive feedback
+                    if d_fault != FAULT_NONE:
+                        d_tout = 0.0
+                        d_int = 0.0
+                        d_tlim = 0.0
+                        d_wref = 0.0
+                    else:
+                        if d_mode == MODE_QUICKSTOP:
+                            if d_qs == 1:   # the ramp starts from the measured rate
+                                d_wqs = min(max(w_fb, -vmax), vmax)
+                                d_qs = 2
+                            if d_wqs > dw_qs:
+                                d_wqs -= dw_qs
+                            elif d_wqs < -dw_qs:
+                                d_wqs += dw_qs
+                            else:           # standstill: hold the position reached
+                                d_wqs = 0.0
+                                d_mode = MODE_POSITION
+                                d_qref = q_fb
+                            w_ref = d_wqs
+                        elif d_mode == MODE_POSITION:
+                            d_ferr = d_qref - q_fb
+                            w_ref = kp_d * d_ferr + w_ff
+                            if fel > 0.0 and abs(d_ferr) > fel:
+                                d_fault = FAULT_FOLLOWING_ERROR
+                        else:
+                            w_ref = w_ff
+                        w_ref = min(max(w_ref, w_lo), w_hi)
+                        t_drv, t_u, d_int = velocity_loop(w_ref, w_fb, d_int, kv_d, ki_d, t_ff,
+                                                          tmax, td)
+                        if abs(t_u) >= tmax:
+                            d_tlim += td
+                            if tlt > 0.0 and d_tlim > tlt:
+                                d_fault = FAULT_TORQUE_LIMIT
+                        else:
+                            d_tlim = 0.0
+                        if d_fault != FAULT_NONE:
+                            t_drv = 0.0
+                            d_int = 0.0
+                        d_wref = w_ref
+                        d_tout = t_drv
+                    t_sat = d_tout
+                d_phase += 1
+                if d_phase >= d_m:
+                    d_phase = 0
             te_new = te + alpha * (t_sat - te)
             f_m = 0.0
             f_s = 0.0
@@ -530,6 +705,41 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
         S[S_MODE0 + 2] = mode_c
         S[S_MODE0 + 3] = mode_g
         S[S_NSEARCH] = nsearch
+        if not drive_on:
+            d_phase = (d_phase + nsub) % d_m
+        # limit and home switches from the true nut position at the end of the step (with
+        # hysteresis); they act on the next step
+        if sw_min:
+            sw_min = not (xa > l_min + hyst)
+        else:
+            sw_min = xa <= l_min
+        if sw_max:
+            sw_max = not (xa < l_max - hyst)
+        else:
+            sw_max = xa >= l_max
+        home = S[S_HOME] > 0.5
+        if home:
+            home = not (xa < x_home - hyst)
+        else:
+            home = xa >= x_home
+        S[S_CMODE] = c_mode
+        S[S_CQ] = c_q
+        S[S_CW] = c_w
+        S[S_CT] = c_t
+        S[S_DMODE] = d_mode
+        S[S_DQREF] = d_qref
+        S[S_DINT] = d_int
+        S[S_DTOUT] = d_tout
+        S[S_DPHASE] = d_phase
+        S[S_DFAULT] = d_fault
+        S[S_DTLIM] = d_tlim
+        S[S_DQS] = d_qs
+        S[S_DWQS] = d_wqs
+        S[S_DFERR] = d_ferr
+        S[S_DWREF] = d_wref
+        S[S_SWMIN] = 1.0 if sw_min else 0.0
+        S[S_SWMAX] = 1.0 if sw_max else 0.0
+        S[S_HOME] = 1.0 if home else 0.0
         # outputs of the last substep
         out[O_NLA] = flo_a / cl
         out[O_NUA] = fup_a / cl
@@ -549,35 +759,68 @@ def _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
         out[O_TBR] = t_br
         out[O_FG] = f_g
         out[O_NSUB] = nsub
+        out[O_DMODE] = d_mode
+        out[O_DFAULT] = d_fault
+        out[O_SWMIN] = S[S_SWMIN]
+        out[O_SWMAX] = S[S_SWMAX]
+        out[O_HOME] = S[S_HOME]
+        out[O_DFERR] = d_ferr if d_mode == MODE_POSITION else 0.0
+        out[O_DTCMD] = t_sat
+        out[O_DWREF] = d_wref if drive_on else 0.0
         for j in range(REC_STATE):
             rec[i, j] = S[j]
         for j in range(NO):
             rec[i, REC_STATE + j] = out[j]
-    return torques.shape[0]
+    return n_steps
 
 
 @kernel_jit
 def step(P, S, out, t_cmd, f_in, dt, nsub, wk, iwk):
     """
-    Advance the state S by exactly dt in nsub equal substeps.
+    Advance the state S by exactly dt in nsub equal substeps, in torque mode.
 
-    t_cmd: commanded motor torque [N m] in the q sense; f_in: external axial
-    force on nut A [N] added to the parameter one. Returns 0, or 1 if a state
-    became non-finite (S and out are then left as they were before the call).
+    t_cmd: commanded motor torque [N m] in the q sense (it becomes the held
+    command); f_in: external axial force on nut A [N] added to the parameter
+    one. Returns 0, or 1 if a state became non-finite (S and out are then left
+    as they were before the call).
     """
     io = wk[WK_IO:WK_IO + WK_NIO]
     io[0] = t_cmd
     io[1] = f_in
+    row = wk[WK_CMD:WK_CMD + N_CMD].reshape((1, N_CMD))
     rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_ROW))   # a scratch record row
-    return 0 if _steps(P, S, out, io[0:1], io[1:2], dt, nsub, wk, iwk, rec) == 1 else 1
+    return 0 if _steps(P, S, out, io[0:1], io[1:2], row[0:0], dt, nsub, wk, iwk, rec) == 1 \
+        else 1
 
 
 @kernel_jit
-def run_series(P, S, out, torques, forces, dt, nsub, wk, iwk, rec):
+def step_held(P, S, out, f_in, dt, nsub, wk, iwk):
+    """
+    Advance the state S by exactly dt under the held drive command (S_CMODE .. S_CT).
+
+    f_in: external axial force on nut A [N] added to the parameter one.
+    Returns 0, or 1 if a state became non-finite (S and out unchanged).
+    """
+    io = wk[WK_IO:WK_IO + WK_NIO]
+    io[0] = S[S_CT]
+    io[1] = f_in
+    row = wk[WK_CMD:WK_CMD + N_CMD].reshape((1, N_CMD))
+    row[0, 0] = S[S_CMODE]
+    row[0, 1] = S[S_CQ]
+    row[0, 2] = S[S_CW]
+    row[0, 3] = S[S_CT]
+    rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_ROW))   # a scratch record row
+    return 0 if _steps(P, S, out, io[0:1], io[1:2], row, dt, nsub, wk, iwk, rec) == 1 else 1
+
+
+@kernel_jit
+def run_series(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     """
     Run one step per entry of torques/forces (q sense, N m and N) in one call.
 
-    After step i, rec[i, :REC_STATE] holds S[:REC_STATE] and rec[i, REC_STATE:]
-    the outputs. Returns the number of steps done (fewer on a non-finite state).
+    cmds: drive command rows, shape (0, N_CMD) for torque mode with torques,
+    or one row per step (see _steps). After step i, rec[i, :REC_STATE] holds
+    S[:REC_STATE] and rec[i, REC_STATE:] the outputs. Returns the number of
+    steps done (fewer on a non-finite state).
     """
-    return _steps(P, S, out, torques, forces, dt, nsub, wk, iwk, rec)
+    return _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec)

@@ -7,9 +7,16 @@ hands). Each constant's comment gives the meaning and unit of its slot.
 The workspace offsets are derived from the sizes of the blocks they hold.
 
 The friction law's constants fill one block of P, N_FRICTION slots from
-P_FRICTION, the last block so that it can grow without moving other slots;
-friction.py alone assigns the slots inside it (pack_friction writes them,
-friction_constants reads them), so the kernel never names them.
+P_FRICTION; friction.py alone assigns the slots inside it (pack_friction
+writes them, friction_constants reads them), so the kernel never names them.
+The drive's block follows it (so the friction block, which friction.py's
+compiled code bakes in, has not moved since that module last changed).
+
+The servo drive (drive.py, physics.md section 10) has its parameter slots
+P_DRATE .. P_HYST, its state S_CMODE .. S_DWREF (the held command, then the
+drive's own state: mode, target, integral, held torque, update phase, fault,
+switches) and its outputs O_DMODE .. O_DWREF; a command row of step_held()
+and run_series is N_CMD floats (mode, q, w, torque), all in the q sense.
 """
 
 # Parameter vector P (float64[NP]) ---------------------------------------------
@@ -46,7 +53,23 @@ P_KP = 29       # anti-backlash spring stiffness [N/m]
 P_FEXT = 30     # constant external axial force on nut A [N]
 P_FRICTION = 31  # index of the first slot of the friction law's block
 N_FRICTION = 10  # slots of the block: the Stribeck law uses 6, 4 are spare
-NP = P_FRICTION + N_FRICTION    # length of P
+# servo drive (drive.py; motor quantities in the q sense), after the friction block
+P_DRATE = P_FRICTION + N_FRICTION   # drive_rate: drive update rate asked for [Hz]
+P_DKP = P_DRATE + 1     # position gain K_p [1/s]
+P_DKV = P_DRATE + 2     # velocity gain K_v [N m s/rad]
+P_DTI = P_DRATE + 3     # velocity integral time T_i [s]; 0: no integral
+P_DVMAX = P_DRATE + 4   # velocity limit of the motor [rad/s]
+P_DQSD = P_DRATE + 5    # quick stop deceleration of the motor [rad/s^2]
+P_DFEL = P_DRATE + 6    # following error limit [rad]; 0: off
+P_DTLT = P_DRATE + 7    # torque limit time [s]; 0: off
+P_DSCALE = P_DRATE + 8  # 1.0: position feedback from the linear scale, 0.0: motor encoder
+P_DQ0 = P_DRATE + 9     # motor angle of the initial state [rad] (linear scale reference)
+P_DX0 = P_DRATE + 10    # nut A position of the initial state [m] (linear scale reference)
+P_LMIN = P_DRATE + 11   # min limit switch position [m]: trips at x <= P_LMIN
+P_LMAX = P_DRATE + 12   # max limit switch position [m]: trips at x >= P_LMAX
+P_HOME = P_DRATE + 13   # home switch position [m]: on at x >= P_HOME
+P_HYST = P_DRATE + 14   # switch hysteresis [m]
+NP = P_DRATE + 15       # length of P
 
 # State vector S (float64[NS]) -------------------------------------------------
 S_QM = 0        # motor angle [rad]
@@ -66,7 +89,27 @@ S_EDAMP = 13    # energy dissipated by dampers since reset [J]
 S_FAPREV = 14   # axial thread force of the last substep [N], for the collar limit
 S_MODE0 = 15    # 4 slots: warm-start mode of thread A, thread B, bearing, guide (-1, 0, 1)
 S_NSEARCH = 19  # count of LCP warm-start misses (diagnostic) [-]
-NS = 20         # length of S
+# servo drive: the held command (as model.command or a command row gave it), q sense
+S_CMODE = 20    # commanded mode (drive.MODE_*)
+S_CQ = 21       # commanded motor angle [rad] (position mode)
+S_CW = 22       # commanded motor rate [rad/s] (velocity mode; feed-forward in position mode)
+S_CT = 23       # commanded torque [N m] (torque mode; feed-forward otherwise)
+# servo drive: its own state
+S_DMODE = 24    # active mode (drive.MODE_*; MODE_QUICKSTOP ends in MODE_POSITION)
+S_DQREF = 25    # active position target [rad]
+S_DINT = 26     # velocity integral I, the integral of the velocity error [rad]
+S_DTOUT = 27    # drive torque command held between updates (before lag) [N m]
+S_DPHASE = 28   # substeps since the last drive update (0 .. m-1) [-]
+S_DFAULT = 29   # latched fault code (drive.FAULT_*); torque off while nonzero
+S_DTLIM = 30    # time the velocity loop output has been at +-max_torque [s]
+S_DQS = 31      # 1.0: the held command is a quick stop that has started (or ended in a hold)
+S_DWQS = 32     # quick stop velocity ramp [rad/s]; NaN: start from the measured rate
+S_SWMIN = 33    # min limit switch tripped (1.0) or not (0.0)
+S_SWMAX = 34    # max limit switch tripped (1.0) or not (0.0)
+S_HOME = 35     # home switch on (1.0) or off (0.0)
+S_DFERR = 36    # following error q_ref - q_fb of the last position-mode update [rad]
+S_DWREF = 37    # velocity reference of the last drive update [rad/s]
+NS = 38         # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]
@@ -87,7 +130,15 @@ O_TE = 14       # applied motor torque [N m]
 O_TBR = 15      # bearing + collar friction torque [N m]
 O_FG = 16       # nut guide Coulomb force [N]
 O_NSUB = 17     # substeps taken in the step [-]
-NO = 18         # length of out
+O_DMODE = 18    # drive mode at the end of the step (drive.MODE_*)
+O_DFAULT = 19   # drive fault code (drive.FAULT_*)
+O_SWMIN = 20    # min limit switch: 1 tripped, 0 not
+O_SWMAX = 21    # max limit switch: 1 tripped, 0 not
+O_HOME = 22     # home switch: 1 on, 0 off
+O_DFERR = 23    # following error q_ref - q_fb [rad] (position mode, else 0)
+O_DTCMD = 24    # drive torque command, before lag and saturation of the motor [N m]
+O_DWREF = 25    # velocity reference of the last drive update [rad/s] (0 in torque mode)
+NO = 26         # length of out
 
 # Records of run_series: one row per step ------------------------------------------
 REC_STATE = 10                  # a row starts with S[0:REC_STATE] (positions .. time)
@@ -106,7 +157,9 @@ WK_R = WK_A + MAXE * MAXE       # LCP elimination right-hand side, MAXE
 WK_LCP = WK_R + MAXE            # floats of LCP scratch: 2 MAXE^2 + 4 MAXE
 WK_IO = WK_LCP                  # step()'s inputs: commanded torque [N m], force [N]
 WK_NIO = 2                      # floats of step()'s inputs
-WK_REC = WK_IO + WK_NIO         # step()'s scratch record row, REC_ROW floats
+WK_CMD = WK_IO + WK_NIO         # step_held()'s command row: mode, q, w, torque (N_CMD floats)
+N_CMD = 4                       # floats of a command row (mode, q [rad], w [rad/s], t [N m])
+WK_REC = WK_CMD + N_CMD         # step()'s scratch record row, REC_ROW floats
 WK_FLOAT = WK_REC + REC_ROW     # length of wk
 
 # Integer workspace iwk (int64[WK_INT]) ----------------------------------------------

@@ -5,12 +5,19 @@ Sign convention (physics.md section 3): theta follows the right-hand rule
 about +x; the motor torque and screw angle are reported in that sense. A
 positive torque moves the nut toward -x for a right-hand thread and toward +x
 for a left-hand one.
+
+The motor is driven in torque mode (:meth:`LeadScrewModel.advance`, :meth:`~LeadScrewModel.run`
+with torques) or through the servo drive (:mod:`.drive`): :meth:`~LeadScrewModel.command`
+sets a held command (torque, velocity, position, quick stop) that
+:meth:`~LeadScrewModel.advance_held` follows, or :meth:`~LeadScrewModel.run` takes one
+command per step.
 """
 import dataclasses
 import math
 
 import numpy as np
 
+from . import drive as D
 from . import friction as F
 from . import kernel as K
 from . import layout as L
@@ -21,6 +28,11 @@ from .params import ParameterError, ScrewParams
 MAX_SUBSTEPS_PER_STEP = 200000
 
 CONTACT_NAMES = {1: 'leading', -1: 'trailing', 0: 'backlash'}
+
+#: Mode names accepted by :meth:`LeadScrewModel.command`, with their codes.
+MODE_CODES = {name: code for code, name in D.MODE_NAMES.items()}
+
+_NO_COMMANDS = np.zeros((0, L.N_CMD))   # run_series without command rows: torque mode
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,7 +100,28 @@ def pack_params(p):
     v[L.P_KP] = p.preload_stiffness
     v[L.P_FEXT] = p.external_force
     F.pack_friction(p, v)
+    D.pack_drive(p, v, initial_seating(p, v)[0])
     return v
+
+
+def initial_seating(p, v):
+    """
+    Return (q0 [rad], x_a [m], x_b [m]): the initial screw/motor angle (q sense) and nut positions.
+
+    The nut rests at ``initial_position`` on the flank its static load presses
+    (physics.md, initial state); the screw angle follows from the flank
+    penetration of that load. v is the parameter vector (P_RT and P_GS used).
+    """
+    rt = v[L.P_RT]
+    hb = 0.5 * p.backlash
+    x0 = p.initial_position
+    if p.anti_backlash:
+        delta_a = -hb
+    else:
+        f0 = p.external_force - (p.nut_mass + p.payload_mass) * v[L.P_GS]
+        delta_a = 0.0 if f0 == 0.0 else (
+            (-hb + f0 / p.contact_stiffness) if f0 < 0 else (hb + f0 / p.contact_stiffness))
+    return (x0 - delta_a) / rt, x0, (x0 + p.backlash if p.anti_backlash else x0)
 
 
 def _mass_matrices(p):
@@ -178,7 +211,8 @@ class LeadScrewModel:
         Swap in new parameters at run time, keeping the state.
 
         Geometry and the anti-backlash flag change the meaning of the state;
-        callers should treat them as read-only.
+        callers should treat them as read-only. The drive's position reference
+        (:meth:`nut_to_motor`) stays that of the last reset.
 
         Parameters
         ----------
@@ -193,7 +227,9 @@ class LeadScrewModel:
         """
         new_h = auto_substep(params)
         old = (self.params, self._P, self.substep, self.nsub)
-        self.params, self._P, self.substep = params, pack_params(params), new_h
+        new_P = pack_params(params)
+        new_P[[L.P_DQ0, L.P_DX0]] = self._P[[L.P_DQ0, L.P_DX0]]   # the scale's reference stays
+        self.params, self._P, self.substep = params, new_P, new_h
         try:
             self.nsub = self.substeps_for(self.dt)
         except ParameterError:
@@ -221,23 +257,18 @@ class LeadScrewModel:
         return n
 
     def reset(self):
-        """Restore the initial state (static seating on the loaded flank)."""
+        """Restore the initial state (static seating on the loaded flank; drive in torque mode)."""
         p = self.params
         s = self.state
         s[:] = 0.0
-        rt = self._P[L.P_RT]
-        hb = 0.5 * p.backlash
-        x0 = p.initial_position
-        if p.anti_backlash:
-            delta_a = -hb
-        else:
-            f0 = p.external_force - (p.nut_mass + p.payload_mass) * self._P[L.P_GS]
-            delta_a = 0.0 if f0 == 0.0 else (
-                (-hb + f0 / p.contact_stiffness) if f0 < 0 else (hb + f0 / p.contact_stiffness))
-        q0 = (x0 - delta_a) / rt
+        self._P = pack_params(p)
+        q0, xa, xb = initial_seating(p, self._P)
         s[L.S_Q] = s[L.S_QM] = q0
-        s[L.S_XA] = x0
-        s[L.S_XB] = x0 + p.backlash if p.anti_backlash else x0
+        s[L.S_XA] = xa
+        s[L.S_XB] = xb
+        s[L.S_SWMIN] = 1.0 if xa <= p.limit_min_position else 0.0
+        s[L.S_SWMAX] = 1.0 if xa >= p.limit_max_position else 0.0
+        s[L.S_HOME] = 1.0 if xa >= p.home_position else 0.0
         self.fault = None
         self.out[:] = 0.0
         self._e0 = self._stored_energy()
@@ -296,16 +327,23 @@ class LeadScrewModel:
             self._fail(f'non-finite state at t={self.state[L.S_T]:.6f} s '
                        f'(torque {torque} N m); integration stopped')
 
-    def run(self, torques, external_forces=None):
+    def run(self, torques, external_forces=None, *, commands=None):
         """
-        Run one step of ``dt`` per torque in a single compiled call.
+        Run one step of ``dt`` per torque (or per drive command) in a single compiled call.
 
         Parameters
         ----------
-        torques : array_like of float
-            Motor torque command of each step [N m], theta sense.
+        torques : array_like of float or None
+            Motor torque command of each step [N m], theta sense (torque mode).
+            None when ``commands`` is given.
         external_forces : array_like of float, optional
             Axial force on the nut along +x of each step [N]; default zeros.
+        commands : array_like of float, shape (n, 4), optional
+            One drive command per step, theta sense: (mode, position [rad],
+            velocity [rad/s], effort [N m]) as :meth:`command` takes them (mode
+            a ``drive.MODE_*`` code); NaN in position, velocity or effort means
+            not commanded (an unused field, or a zero feed-forward). The last
+            row stays the held command.
 
         Returns
         -------
@@ -314,7 +352,10 @@ class LeadScrewModel:
             nut_position, nut_velocity, motor_torque, axial_force,
             thread_torque, friction_force, normal_leading, normal_trailing,
             sliding_velocity, contact, stuck: one entry per step, in the units
-            and senses of StepOutput.
+            and senses of StepOutput. With ``commands`` also the drive's:
+            mode, fault (codes), limit_min, limit_max, home (bool),
+            following_error [rad], drive_torque (the drive's torque command
+            before the motor lag) [N m] and velocity_reference [rad/s].
 
         Raises
         ------
@@ -324,15 +365,29 @@ class LeadScrewModel:
             If the state became non-finite.
 
         """
-        tq = np.ascontiguousarray(torques, dtype=float)
-        fe = (np.zeros_like(tq) if external_forces is None
-              else np.ascontiguousarray(external_forces, dtype=float))
-        if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
-            raise ValueError('torques and external_forces must be finite and of equal length')
-        self._check_fault()
-        rec = np.empty((len(tq), L.REC_STATE + L.NO))
         hs = self.params.hand_sign
-        done = K.run_series(self._P, self.state, self.out, tq if hs == 1 else -tq, fe,
+        if commands is None:
+            tq = np.ascontiguousarray(torques, dtype=float)
+            fe = (np.zeros_like(tq) if external_forces is None
+                  else np.ascontiguousarray(external_forces, dtype=float))
+            if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
+                raise ValueError('torques and external_forces must be finite and of equal '
+                                 'length')
+            cmds, tq_q = _NO_COMMANDS, (tq if hs == 1 else -tq)
+        else:
+            if torques is not None:
+                raise ValueError('give torques or commands, not both (a torque mode command '
+                                 'row carries its torque as effort)')
+            cmds = self._command_rows(commands)   # validated, q sense
+            fe = (np.zeros(len(cmds)) if external_forces is None
+                  else np.ascontiguousarray(external_forces, dtype=float))
+            if fe.shape != (len(cmds),) or not np.isfinite(fe).all():
+                raise ValueError('external_forces must be finite and as long as commands')
+            tq_q = fe                             # unused with command rows: only its length
+        n = len(fe)
+        self._check_fault()
+        rec = np.empty((n, L.REC_STATE + L.NO))
+        done = K.run_series(self._P, self.state, self.out, tq_q, fe, cmds,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
         r = rec[:done]
 
@@ -348,9 +403,216 @@ class LeadScrewModel:
             normal_leading=r[:, o + L.O_NLA], normal_trailing=r[:, o + L.O_NUA],
             sliding_velocity=r[:, o + L.O_VSA], contact=r[:, o + L.O_CONTA].astype(int),
             stuck=r[:, o + L.O_STICKA] == 1.0)
-        if done < len(tq):
+        if commands is not None:   # the drive's outputs O_DMODE .. O_DWREF, in one copy
+            d = np.ascontiguousarray(r[:, o + L.O_DMODE:o + L.O_DWREF + 1].T)
+            d0 = L.O_DMODE
+            ang = d[L.O_DFERR - d0:]        # following error, drive torque, velocity reference
+            ang *= hs                       # q sense -> theta sense
+            ang += 0.0                      # no -0.0
+            res.update(
+                mode=d[L.O_DMODE - d0].astype(int), fault=d[L.O_DFAULT - d0].astype(int),
+                limit_min=d[L.O_SWMIN - d0] == 1.0, limit_max=d[L.O_SWMAX - d0] == 1.0,
+                home=d[L.O_HOME - d0] == 1.0, following_error=ang[0],
+                drive_torque=ang[L.O_DTCMD - L.O_DFERR],
+                velocity_reference=ang[L.O_DWREF - L.O_DFERR])
+        if done < n:
             self._fail(f'non-finite state at step {done}; integration stopped')
         return res
+
+    # Servo drive --------------------------------------------------------------
+    def command(self, mode, position=math.nan, velocity=math.nan, effort=0.0):
+        """
+        Set the held drive command that :meth:`advance_held` follows, from the next step on.
+
+        Parameters
+        ----------
+        mode : int or str
+            ``drive.MODE_TORQUE`` (0, 'torque'), ``MODE_VELOCITY`` (1, 'velocity'),
+            ``MODE_POSITION`` (2, 'position') or ``MODE_QUICKSTOP`` (3,
+            'quick_stop': ramp to standstill at ``quick_stop_deceleration``, then
+            hold the position reached; repeating it does not restart the ramp).
+        position : float
+            Target motor (screw) angle [rad], theta sense, in the frame of
+            :meth:`nut_to_motor`; required in position mode, unused otherwise.
+        velocity : float
+            Motor rate [rad/s], theta sense: the command in velocity mode, the
+            velocity feed-forward in position mode (NaN: none).
+        effort : float
+            Motor torque [N m], theta sense: the command in torque mode, the torque
+            feed-forward in velocity and position mode (NaN: none).
+
+        Raises
+        ------
+        ValueError
+            If the mode is unknown or its command is not finite (nothing changes).
+
+        """
+        code = self._mode_code(mode)
+        q, w, t = float(position), float(velocity), float(effort)
+        w = 0.0 if w != w else w                # NaN feed-forwards: none
+        t = 0.0 if t != t else t
+        main = (t, w, q, 0.0)[code]
+        if not (math.isfinite(main) and math.isfinite(w) and math.isfinite(t)):
+            raise ValueError(f'mode {D.MODE_NAMES[code]} needs a finite '
+                             f'{("effort", "velocity", "position", "")[code]} and finite '
+                             f'feed-forwards; got position={position!r}, velocity={velocity!r}, '
+                             f'effort={effort!r}')
+        hs = self.params.hand_sign
+        s = self.state
+        s[L.S_CMODE] = code     # as drive.prepare_commands converts a row
+        s[L.S_CQ] = hs * q + 0.0 if code == D.MODE_POSITION else 0.0
+        s[L.S_CW] = hs * w + 0.0 if code in (D.MODE_POSITION, D.MODE_VELOCITY) else 0.0
+        s[L.S_CT] = hs * t if code == D.MODE_TORQUE else (
+            hs * t + 0.0 if code != D.MODE_QUICKSTOP else 0.0)
+
+    def advance_held(self, external_force=0.0):
+        """
+        Advance by one step of ``dt`` under the held drive command (see :meth:`command`).
+
+        Parameters
+        ----------
+        external_force : float
+            Axial force on the nut along +x [N], in addition to the parameter.
+
+        Raises
+        ------
+        ValueError
+            If the force is not finite.
+        SimulationFault
+            If the state became non-finite (the state is the one before the step).
+
+        """
+        if not math.isfinite(external_force):
+            raise ValueError(f'non-finite input: external_force={external_force!r} N')
+        self._check_fault()
+        rc = K.step_held(self._P, self.state, self.out, float(external_force), self.dt,
+                         self.nsub, self._wk, self._iwk)
+        if rc != 0:
+            self._fail(f'non-finite state at t={self.state[L.S_T]:.6f} s (drive mode '
+                       f'{int(self.state[L.S_DMODE])}); integration stopped')
+
+    def clear_fault(self):
+        """
+        Clear a latched drive fault: the drive holds the current position (position mode, I = 0).
+
+        The held command becomes that position hold, so the axis does not jump;
+        a new command takes over from the next step.
+
+        Returns
+        -------
+        int
+            The fault code that was latched (``drive.FAULT_NONE`` if none: then
+            nothing changes).
+
+        """
+        s = self.state
+        code = int(s[L.S_DFAULT])
+        if code == D.FAULT_NONE:
+            return code
+        q_fb = self._feedback_angle()
+        s[[L.S_DFAULT, L.S_DINT, L.S_DTLIM, L.S_DQS, L.S_DFERR, L.S_DTOUT]] = 0.0
+        s[L.S_DMODE] = s[L.S_CMODE] = D.MODE_POSITION
+        s[L.S_DQREF] = s[L.S_CQ] = q_fb
+        s[L.S_CW] = s[L.S_CT] = 0.0
+        return code
+
+    def inject_fault(self):
+        """Latch ``drive.FAULT_INJECTED`` unless a fault is latched (torque off until cleared)."""
+        if int(self.state[L.S_DFAULT]) == D.FAULT_NONE:
+            self.state[L.S_DFAULT] = D.FAULT_INJECTED
+
+    def drive_status(self):
+        """
+        Return the drive's state after the last step.
+
+        Returns
+        -------
+        dict
+            mode (``drive.MODE_*`` code) and mode_name; fault (``drive.FAULT_*``
+            code) and fault_name; limit_min, limit_max, home (switch states,
+            bool); following_error: target less feedback angle [rad], theta sense
+            (0 outside position mode); effective_drive_rate [Hz] (the substep grid's
+            rate nearest to ``drive_rate``); drive_torque: the drive's torque command
+            [N m] and velocity_reference [rad/s], theta sense.
+
+        """
+        s, hs = self.state, self.params.hand_sign
+        mode, fault = int(s[L.S_DMODE]), int(s[L.S_DFAULT])
+        return dict(
+            mode=mode, mode_name=D.MODE_NAMES[mode], fault=fault,
+            fault_name=D.FAULT_NAMES[fault], limit_min=bool(s[L.S_SWMIN] == 1.0),
+            limit_max=bool(s[L.S_SWMAX] == 1.0), home=bool(s[L.S_HOME] == 1.0),
+            following_error=float(hs * s[L.S_DFERR]) + 0.0 if mode == D.MODE_POSITION else 0.0,
+            effective_drive_rate=D.effective_rate(self.nsub, self.dt, self.params.drive_rate),
+            drive_torque=float(hs * s[L.S_DTOUT]) + 0.0,
+            velocity_reference=float(hs * s[L.S_DWREF]) + 0.0 if mode != D.MODE_TORQUE else 0.0)
+
+    def nut_to_motor(self, x):
+        """
+        Return the motor angle [rad] (theta sense) that puts the nut at x by the rigid kinematics.
+
+        theta0 + h (x - x0) 2 pi / l, referenced at the initial state (as after
+        homing): x0 = ``initial_position`` maps to the initial motor angle theta0.
+
+        Parameters
+        ----------
+        x : float or numpy.ndarray
+            Nut position [m].
+
+        """
+        P = self._P
+        return self.params.hand_sign * (P[L.P_DQ0] + (np.asarray(x) - P[L.P_DX0]) / P[L.P_RT])
+
+    def motor_to_nut(self, theta):
+        """
+        Return the nut position [m] of a motor angle by the rigid kinematics (see nut_to_motor).
+
+        Parameters
+        ----------
+        theta : float or numpy.ndarray
+            Motor angle [rad], theta sense.
+
+        """
+        P = self._P
+        return P[L.P_DX0] + (self.params.hand_sign * np.asarray(theta) - P[L.P_DQ0]) * P[L.P_RT]
+
+    def _feedback_angle(self):
+        """Return the drive's position feedback now [rad], q sense (as the kernel reads it)."""
+        P, s = self._P, self.state
+        if P[L.P_DSCALE] > 0.5:
+            return P[L.P_DQ0] + (s[L.S_XA] - P[L.P_DX0]) * (1.0 / P[L.P_RT])
+        return s[L.S_QM]
+
+    @staticmethod
+    def _mode_code(mode):
+        """Return the drive.MODE_* code of a mode code or name; raise ValueError otherwise."""
+        if isinstance(mode, str):
+            if mode not in MODE_CODES:
+                raise ValueError(f'unknown drive mode {mode!r} (known: {", ".join(MODE_CODES)})')
+            return MODE_CODES[mode]
+        if isinstance(mode, bool) or mode not in D.MODE_NAMES:
+            raise ValueError(f'unknown drive mode {mode!r} (codes: {sorted(D.MODE_NAMES)})')
+        return int(mode)
+
+    def _command_rows(self, commands):
+        """Return validated command rows (n, 4) in the q sense, unused fields 0."""
+        c = np.array(commands, dtype=float)
+        if c.ndim != 2 or c.shape[1] != L.N_CMD:
+            raise ValueError(f'commands must have shape (n, {L.N_CMD}): mode, position, '
+                             f'velocity, effort; got {c.shape}')
+        original = c.copy() if len(c) < 2 else None
+        bad = D.prepare_commands(c, self.params.hand_sign)
+        if bad >= 0:
+            row = (original if original is not None else np.array(commands, float))[bad]
+            mode = row[0]
+            if mode not in D.MODE_NAMES:
+                raise ValueError(f'command {bad}: unknown drive mode {mode!r} '
+                                 f'(codes: {sorted(D.MODE_NAMES)})')
+            need = {D.MODE_POSITION: 'position', D.MODE_VELOCITY: 'velocity',
+                    D.MODE_TORQUE: 'effort'}.get(int(mode))
+            raise ValueError(f'command {bad}: mode {D.MODE_NAMES[int(mode)]} needs a finite '
+                             f'{need} and finite feed-forwards; got {list(row)}')
+        return c
 
     def _check_fault(self):
         """Raise the latched SimulationFault again, if any (until reset())."""

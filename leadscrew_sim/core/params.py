@@ -13,6 +13,9 @@ from .fields import document, field, ParameterError, Schema
 
 __all__ = ['ParameterError', 'ScrewParams']
 
+#: Values of drive_feedback: where the drive's position loop takes its angle from.
+DRIVE_FEEDBACKS = ('motor_encoder', 'linear_scale')
+
 
 @document
 @dataclasses.dataclass(frozen=True)
@@ -71,6 +74,37 @@ class ScrewParams(Schema):
     max_torque: float = field(2.0, 'N m', 'motor torque saturation T_max', 1e-6, 1e5)
     torque_lag: float = field(0.0, 's', 'motor torque first-order lag tau_e; 0 means none',
                               0.0, 10.0)
+    # Servo drive (physics.md section 10; angles and rates of the motor)
+    drive_rate: float = field(4000.0, 'Hz', 'servo drive update rate asked for; the drive '
+                              'updates every m = max(1, round(substeps per step * update_rate '
+                              '/ drive_rate)) substeps', 1.0, 1e6)
+    position_gain: float = field(62.8, '1/s', 'position loop gain K_p', 0.0, 1e5)
+    velocity_gain: float = field(3.85e-3, 'N m s/rad', 'velocity loop gain K_v', 0.0, 1e6)
+    velocity_integral_time: float = field(0.0127, 's', 'velocity loop integral time T_i; 0 '
+                                          'means no integral', 0.0, 100.0)
+    velocity_limit: float = field(300.0, 'rad/s', 'motor velocity limit of the velocity '
+                                  'reference', 0.0, 1e5, lo_open=True)
+    quick_stop_deceleration: float = field(1000.0, 'rad/s^2', 'motor deceleration of a quick '
+                                           'stop', 0.0, 1e8, lo_open=True)
+    following_error_limit: float = field(0.0, 'rad', 'motor angle following error that latches '
+                                         'a drive fault in position mode; 0 means off',
+                                         0.0, 1e6)
+    torque_limit_time: float = field(0.0, 's', 'time the velocity loop output may stay at '
+                                     '+-max_torque before a drive fault latches; 0 means off',
+                                     0.0, 3600.0)
+    drive_feedback: str = field('motor_encoder', '-', 'position loop feedback: the motor '
+                                'encoder, or the linear scale (nut position mapped to a motor '
+                                'angle through the lead)', choices=DRIVE_FEEDBACKS)
+    limit_min_position: float = field(-1000.0, 'm', 'min limit switch: trips at x <= this, '
+                                      'releases above it plus the hysteresis; the default '
+                                      'lies beyond any stroke (no switch)', -1000.0, 1000.0)
+    limit_max_position: float = field(1000.0, 'm', 'max limit switch: trips at x >= this, '
+                                      'releases below it less the hysteresis; the default '
+                                      'lies beyond any stroke (no switch)', -1000.0, 1000.0)
+    home_position: float = field(1000.0, 'm', 'home switch: on at x >= this, off below it '
+                                 'less the hysteresis (an output only)', -1000.0, 1000.0)
+    switch_hysteresis: float = field(1e-3, 'm', 'hysteresis of the limit and home switches',
+                                     0.0, 1.0)
     # Anti-backlash split nut (section 7)
     anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring',
                                 read_only=True)
@@ -161,6 +195,9 @@ class ScrewParams(Schema):
             raise ParameterError('mu_s', f"mu' tan(lambda) = {jam:.3g}"
                                  ' >= 1: the thread jams and cannot be driven against a load'
                                  ' (reduce friction or the lead angle)')
+        if self.limit_min_position >= self.limit_max_position:
+            raise ParameterError('limit_min_position', f'{self.limit_min_position} m must be '
+                                 f'below limit_max_position {self.limit_max_position} m')
         if self.collar_mu > 0.0 and self.collar_radius == 0.0:
             raise ParameterError('collar_radius', '0 m while collar_mu > 0: give the collar '
                                  'friction radius')

@@ -40,9 +40,15 @@ class RunSettings(Schema):
     real_time_factor: float = field(0.0, '-', 'stepped mode pacing: sim seconds per wall '
                                     'second; 0 runs as fast as possible', 0.0, 1000.0)
     joint_prefix: str = field('', '-', 'prefix of the joint names screw_joint and nut_joint')
+    joint_command_mode: str = field(
+        'auto', '-', 'mode of joint_commands: auto (a finite position commands position, '
+        'else a velocity velocity, else an effort torque; the others are feed-forwards) or '
+        'the command interface of a ros2_control URDF, fixed (messages without it update the '
+        'feed-forwards)', choices=('auto', 'position', 'velocity', 'effort'))
     command_timeout: float = field(
-        0.5, 's', 'a torque command older than this is replaced by 0 (wall clock in realtime '
-        'mode, sim time otherwise); 0 disables', 0.0, 3600.0)
+        0.5, 's', 'a command older than this times out like a drive losing communication: '
+        'torque goes to 0, a velocity command to a quick stop and hold, a position target '
+        'holds (wall clock in realtime mode, sim time otherwise); 0 disables', 0.0, 3600.0)
     max_catchup_steps: int = field(10, '-', 'extra fixed steps a late realtime tick may take '
                                    'to catch up before the loop skips ahead (an overrun)',
                                    0, 1000)

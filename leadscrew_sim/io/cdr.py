@@ -165,6 +165,11 @@ _F64 = float64_template()
 F64_TEMPLATE = _F64
 
 
+def encode_bool(value):
+    """Return the CDR bytes of a std_msgs/Bool with ``data = value``."""
+    return CDR_LE + (b'\x01' if value else b'\x00')
+
+
 def encode_float64(value):
     """Return the CDR bytes of a std_msgs/Float64 with ``data = value``."""
     return _F64(None, (value,))

@@ -9,17 +9,29 @@ tools write and find the same channels in MCAP files.
 #: (joint_state_broadcaster convention: best-effort and reliable subscribers connect).
 RELIABLE_10 = dict(reliability='reliable', durability='volatile', depth=10)
 
+#: QoS of the switch topics: reliable, transient local, depth 1 (a late subscriber
+#: gets the current state at once).
+LATCHED_1 = dict(reliability='reliable', durability='transient_local', depth=1)
+
 #: Relative topic name -> (message type, role, QoS). '/clock' is absolute, as the
 #: node publishes it.
 TOPICS = {
     'torque_command': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
     'joint_commands': ('sensor_msgs/msg/JointState', 'command', RELIABLE_10),
     'external_force': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
+    'velocity_command': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
+    'position_command': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
     'joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
     'nut_position': ('std_msgs/msg/Float64', 'state', RELIABLE_10),
     'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state', RELIABLE_10),
+    'limit_switch/min': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
+    'limit_switch/max': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
+    'home_switch': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     '/clock': ('rosgraph_msgs/msg/Clock', 'clock', RELIABLE_10),
 }
+
+#: The switch topics, in the order of the model's switch states (min, max, home).
+SWITCH_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'switch')
 
 #: Topics in the order the node registers its recording channels.
 COMMAND_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'command')

@@ -37,9 +37,9 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
     target_rate : float
         update_rate [Hz].
     command_age : str
-        Age of the last torque command [s], formatted, or ``'no command yet'``.
+        Age of the last drive command [s], formatted, or ``'no command yet'``.
     stale : bool
-        The torque command is stale (0 N m applied).
+        The command is stale (torque mode: 0 N m applied; else a quick stop).
     loop : leadscrew_sim.ros.timing.LoopStats
         Loop counters, ``achieved_rate`` of the window just closed.
     lateness : dict
@@ -54,11 +54,17 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
     o = m.output()
     rec_file, rec_bytes, rec_msgs, rec_err = recorder.status()
     eff = geometry.efficiency(p.mu_k * p.thread_factor, p.lead_angle)
-    level, msg = DiagnosticStatus.OK, 'running'
+    drive = m.drive_status()
+    level, msg = DiagnosticStatus.OK, f'running, drive enabled in {drive["mode_name"]} mode'
     if stale:
-        level, msg = DiagnosticStatus.WARN, 'torque command stale: applying 0 N m'
+        level, msg = DiagnosticStatus.WARN, (
+            'torque command stale: applying 0 N m' if drive['mode_name'] == 'torque' else
+            'command stale: quick stop, holding the position')
     if rec_err:
         level, msg = DiagnosticStatus.WARN, f'recording: {rec_err}'
+    if drive['fault']:
+        level, msg = DiagnosticStatus.ERROR, (f'drive fault: {drive["fault_name"]}; torque off '
+                                              'until ~/clear_fault')
     if m.fault:
         level, msg = DiagnosticStatus.ERROR, f'simulation fault: {m.fault}'
     commands, rejected, ignored = counts
@@ -68,6 +74,13 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         ('nut_position_m', f'{o.nut_position:.6f}'),
         ('applied_torque_Nm', f'{o.motor_torque:.6g}'),
         ('axial_force_N', f'{o.axial_force:.6g}'),
+        ('drive_mode', drive['mode_name']),
+        ('drive_state', f'fault: {drive["fault_name"]}' if drive['fault'] else 'enabled'),
+        ('following_error_rad', f'{drive["following_error"]:.6g}'),
+        ('drive_torque_Nm', f'{drive["drive_torque"]:.6g}'),
+        ('drive_rate_hz', f'{drive["effective_drive_rate"]:g}'),
+        ('limit_switch_min', str(drive['limit_min'])),
+        ('limit_switch_max', str(drive['limit_max'])), ('home_switch', str(drive['home'])),
         ('command_age_s', command_age), ('command_stale', str(stale)),
         ('clock_mode', clock_mode), ('sim_time_s', f'{sim_time_ns / NS:.6f}'),
         ('achieved_rate_hz', f'{loop.achieved_rate:.2f}'),

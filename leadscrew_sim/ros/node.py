@@ -46,8 +46,10 @@ from rclpy.serialization import serialize_message
 from std_srvs.srv import SetBool, Trigger
 
 from ..core import ParameterError, ScrewParams
-from ..core.commands import COMMAND_LOG_TIME
+from ..core.commands import COMMAND_LOG_TIME, NutMap
+from ..core.drive import FAULT_NAMES, FAULT_NONE
 from ..core.faults import SimulationFault
+from ..core.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
 from ..io import tf as TF
 from ..io.description import DescriptionError, JointTree, render_urdf, xacro_args
@@ -56,7 +58,8 @@ from ..io.qos import qos_profile_yaml
 from ..io.run_file import DESCRIPTION_TOPICS
 from ..io.recorder import Recorder
 from ..io.session import StorageOptions
-from ..io.topics import TOPICS
+from ..io.topics import SWITCH_TOPICS, TOPICS
+from ..io.cdr import encode_bool
 from .commands import CommandInputs
 from .diagnostics import diagnostic_array
 from .parameters import (DEFAULT_PRESET, declare_parameters, integers_as_doubles, StartupError,
@@ -105,7 +108,8 @@ class LeadScrewSimNode(Node):
         self.n = 0                         # steps taken; stamp = t0 + n dt
 
         # Commands (zero-order held, in the time base of _command_time) and counters.
-        self.inputs = CommandInputs(self.get_logger(), s.joint_prefix, s.command_timeout)
+        self.inputs = CommandInputs(self.get_logger(), s.joint_prefix, s.command_timeout,
+                                    NutMap.of_model(self.model), s.joint_command_mode)
         self.tick_time = 0                 # time base of command ages (see _step)
         self._events = 0
 
@@ -174,6 +178,7 @@ class LeadScrewSimNode(Node):
         """Take the new run settings; ``names`` are the ones set (changed or not)."""
         old, self.settings = self.settings, new
         self.inputs.set_timeout(new.command_timeout)
+        self.inputs.set_joint_command_mode(new.joint_command_mode)
         if new.joint_prefix != old.joint_prefix:
             self.inputs.set_joint_prefix(new.joint_prefix)
             self._make_serializers()
@@ -191,14 +196,16 @@ class LeadScrewSimNode(Node):
         """Create the publishers and subscriptions of the topic table, and the services."""
         callbacks = {'torque_command': self._on_torque,
                      'joint_commands': self._on_joint_commands,
-                     'external_force': self._on_force}
+                     'external_force': self._on_force,
+                     'velocity_command': self._on_velocity,
+                     'position_command': self._on_position}
         self._pubs, self._rec_topic = {}, {}
         for topic, (type_name, role, qos) in TOPICS.items():
             msg_type, profile = message_class(type_name), qos_profile(qos)
             if role == 'command':
                 ent = self.create_subscription(msg_type, topic, callbacks[topic], profile,
                                                raw=True)
-            elif role == 'state' or self.mode != 'realtime':     # /clock: sim time only
+            elif role in ('state', 'switch') or self.mode != 'realtime':   # /clock: sim time
                 ent = self._pubs[topic] = self.create_publisher(msg_type, topic, profile)
             else:
                 continue
@@ -206,6 +213,10 @@ class LeadScrewSimNode(Node):
         self._pub_clock = self._pubs.get('/clock')
         self._pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(Trigger, '~/clear_fault', self._on_clear_fault)
+        self._switches = None               # last published (min, max, home)
+        self._switch_period = max(1, round(self.settings.update_rate / 10.0))   # steps
+        self._fault_seen = 0                # drive fault code already logged
         self.create_service(SetBool, '~/record', self._on_record)
         self._make_serializers()
         self._pace_reset = True
@@ -307,6 +318,18 @@ class LeadScrewSimNode(Node):
         if self.mode == 'lockstep':
             self._lockstep_tick()
 
+    def _on_velocity(self, data):
+        self._record_cmd('velocity_command', data)
+        self.inputs.velocity_command(data, self._command_time())
+        if self.mode == 'lockstep':
+            self._lockstep_tick()
+
+    def _on_position(self, data):
+        self._record_cmd('position_command', data)
+        self.inputs.position_command(data, self._command_time())
+        if self.mode == 'lockstep':
+            self._lockstep_tick()
+
     def _on_force(self, data):
         self._record_cmd('external_force', data)
         self.inputs.external_force(data)
@@ -319,6 +342,18 @@ class LeadScrewSimNode(Node):
         response.message = (f'reset to the initial state at stamp {self._sim_now() / NS:.6f} s '
                             f'({"ROS time" if self.mode == "realtime" else "sim time"})')
         self.get_logger().info(response.message)
+        return response
+
+    def _on_clear_fault(self, _request, response):
+        code = self.model.clear_fault()
+        self._fault_seen = 0
+        if code == FAULT_NONE:
+            response.success, response.message = True, 'no drive fault latched'
+        else:
+            response.success = True
+            response.message = (f'cleared the {FAULT_NAMES[code]} fault: holding the '
+                                'position, waiting for a command')
+            self.get_logger().info(response.message)
         return response
 
     def _on_record(self, request, response):
@@ -342,8 +377,11 @@ class LeadScrewSimNode(Node):
         model = self.model
         if model.fault:
             return
+        command = self.inputs.command_for_step(age_now)
+        if command is not None:
+            model.command(*command)
         try:
-            model.advance(self.inputs.applied_torque(age_now), None, self.inputs.hold.force)
+            model.advance_held(self.inputs.hold.force)
         except SimulationFault as exc:
             self.get_logger().error(f'simulation fault, integration stopped: {exc}; '
                                     'call ~/reset to restart')
@@ -351,6 +389,12 @@ class LeadScrewSimNode(Node):
         self.n += 1
         if self.n % self.settings.publish_decimation == 0:
             self._publish_states()
+        state = model.state
+        switches = (state[S_SWMIN], state[S_SWMAX], state[S_HOME])
+        if switches != self._switches or self.n % self._switch_period == 0:
+            self._publish_switches(switches)       # on a change and at 10 Hz
+        if state[S_DFAULT] != self._fault_seen:
+            self._log_fault(int(state[S_DFAULT]))
         if self._pub_clock is not None:
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
 
@@ -364,6 +408,20 @@ class LeadScrewSimNode(Node):
                 self._desc_pubs['/tf'].publish(data)
             if self.recorder.active:
                 self.recorder.write(self._rec_topic['/tf'], data, stamp)
+
+    def _publish_switches(self, switches):
+        """Publish and record the switch states (on a change and at 10 Hz)."""
+        self._switches = switches
+        for topic, on in zip(SWITCH_TOPICS, switches):
+            self._emit(topic, encode_bool(on == 1.0))
+
+    def _log_fault(self, code):
+        self._fault_seen = code
+        if code:
+            st = self.model.drive_status()
+            self.get_logger().error(
+                f'drive fault: {FAULT_NAMES[code]} (following error '
+                f'{st["following_error"]:.6g} rad); torque off until ~/clear_fault')
 
     def _emit(self, topic, data):
         """Publish the serialized state ``data`` on ``topic`` and record it."""

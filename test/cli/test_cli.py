@@ -140,6 +140,8 @@ def test_simulate_file_layout(sim_file):
     assert chans == {'/torque_command': 'std_msgs/msg/Float64',
                      '/joint_commands': 'sensor_msgs/msg/JointState',
                      '/external_force': 'std_msgs/msg/Float64',
+                     '/velocity_command': 'std_msgs/msg/Float64',
+                     '/position_command': 'std_msgs/msg/Float64',
                      '/joint_states': 'sensor_msgs/msg/JointState',
                      '/nut_position': 'std_msgs/msg/Float64',
                      '/thread_force': 'geometry_msgs/msg/WrenchStamped',

@@ -80,13 +80,15 @@ JOINT_CASES = [
     (JointState(name=['screw_joint', 'screw_joint'], effort=[0.14, 0.15]), 'rejected'),
     (JointState(name=[], effort=[]), 'ignored'),
     (JointState(name=['other_joint'], effort=[0.16]), 'ignored'),
-    (JointState(name=['nut_joint', 'other'], effort=[0.17, 0.18]), 'ignored'),
+    # an axial force on the nut joint is the motor torque F / k, k = h 2 pi / l [rad/m]
+    (JointState(name=['nut_joint', 'other'], effort=[0.17, 0.18]),
+     0.17 / (PRESET.hand_sign * 2 * math.pi / PRESET.lead)),
     (JointState(name=['screw_joint'], effort=[float('nan')]), 'rejected'),
     (JointState(name=['screw_joint'], effort=[float('-inf')]), 'rejected'),
     (JointState(name=['screw_joint'], effort=[]), 'rejected'),
-    (JointState(name=['nut_joint', 'screw_joint'], effort=[0.5, -1e308]),
-     -PRESET.max_torque),
-    (JointState(name=['screw_joint'], position=[1.0], effort=[0.19]), 0.19),
+    (JointState(name=['nut_joint', 'screw_joint'], effort=[0.5, 0.3]), 'rejected'),   # both
+    (JointState(name=['other', 'screw_joint'], effort=[0.5, -1e308]), -PRESET.max_torque),
+    (JointState(name=['screw_joint'], position=[float('nan')], effort=[0.19]), 0.19),
 ]
 
 #: (value published on external_force, True if it must be rejected).
@@ -307,7 +309,8 @@ def abuse_values(name, desc):
     t = desc.type
     huge = 'x' * 100_000
     if t == ParameterType.PARAMETER_DOUBLE:
-        bad = [1e308, -1e308, float('nan'), float('inf'), float('-inf'), 'abc', True, 1,
+        # An integer is taken as the number (then range-checked): 2**62 is out of every range.
+        bad = [1e308, -1e308, float('nan'), float('inf'), float('-inf'), 'abc', True, 2 ** 62,
                [1.0, 2.0]]
         for r in desc.floating_point_range:
             bad += [r.to_value + max(1.0, abs(r.to_value)),
@@ -389,6 +392,18 @@ def test_parameter_abuse_is_refused_and_changes_nothing(run_exe, ros):
         assert not res.result.successful, batch
     after = get_all()
     assert after == before
+    # An integer for a floating-point parameter is that number, stored as a double.
+    res = ros.call(SetParameters, f'{NODE}/set_parameters', SetParameters.Request(
+        parameters=[param_msg('backlash', 0), param_msg('mu_k', -1)]))
+    assert res.results[0].successful, res.results[0].reason
+    assert not res.results[1].successful
+    assert 'mu_k' in res.results[1].reason and '-1.0' in res.results[1].reason
+    r = ros.call(GetParameters, f'{NODE}/get_parameters', GetParameters.Request(
+        names=['backlash']))
+    assert (r.values[0].type, r.values[0].double_value) == (ParameterType.PARAMETER_DOUBLE, 0.0)
+    tried += 2
+    accepted += 1
+    refused += 1
     n = len(states)
     wait_states(ros, states, proc, n + 200, timeout=10.0)
     assert proc.proc.poll() is None

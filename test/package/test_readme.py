@@ -1,0 +1,89 @@
+"""
+Every command of the README's plain-venv block works as written.
+
+The block after the ``venv-commands`` marker is run line by line with bash,
+in a scratch directory whose ``.venv`` is this repository's virtual
+environment, as a user would run it from the repository root. A command
+that runs until Ctrl-C (the node) must bring up ``/joint_states`` and exit
+0 on SIGINT; the others must exit 0. The block must not be empty.
+"""
+import os
+import re
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from helpers import REPO, wait_for
+
+MARKER = '<!-- venv-commands'
+
+
+def venv_commands():
+    """Return the lines of the README's venv-commands block."""
+    text = (REPO / 'README.md').read_text()
+    start = text.index(MARKER)
+    block = re.search(r'```bash\n(.*?)```', text[start:], re.S)
+    return [line for line in block.group(1).splitlines() if line.strip()]
+
+
+def test_the_block_exists_and_names_the_venv_executables():
+    lines = venv_commands()
+    assert any('.venv/lib/leadscrew_sim/leadscrew_sim_node' in line for line in lines)
+    assert any('.venv/lib/leadscrew_sim/leadscrew_sim ' in line for line in lines)
+
+
+@pytest.fixture(scope='module')
+def scratch(tmp_path_factory):
+    """Return a directory holding a link to the repository's .venv, as the root does."""
+    venv = REPO / '.venv'
+    if not (venv / 'lib' / 'leadscrew_sim' / 'leadscrew_sim_node').exists():
+        pytest.skip('the venv executables exist after make setup')
+    d = tmp_path_factory.mktemp('readme')
+    (d / '.venv').symlink_to(venv)
+    return d
+
+
+def joint_states_seen(env, timeout):
+    """Return True if /joint_states is published within ``timeout`` s (another process)."""
+    code = ('import rclpy, sys, time\n'
+            'from sensor_msgs.msg import JointState\n'
+            'rclpy.init(); n = rclpy.create_node("readme_probe"); got = []\n'
+            'n.create_subscription(JointState, "/joint_states", got.append, 10)\n'
+            f'end = time.monotonic() + {timeout}\n'
+            'while not got and time.monotonic() < end:\n'
+            '    rclpy.spin_once(n, timeout_sec=0.1)\n'
+            'sys.exit(0 if got else 1)\n')
+    return subprocess.run([sys.executable, '-c', code], env=env,
+                          timeout=timeout + 30).returncode == 0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_every_venv_command_runs(scratch):
+    env = dict(os.environ)
+    env.pop('AMENT_PREFIX_PATH', None)          # the block sets it
+    prelude = []
+    for line in venv_commands():
+        if line.startswith('export '):
+            prelude.append(line)
+            continue
+        script = '\n'.join(prelude + [line])
+        if '_node' in line or 'leadscrew_sim.node' in line:
+            script = '\n'.join(prelude + ['exec ' + line])      # Ctrl-C reaches the node
+            proc = subprocess.Popen(['bash', '-c', script], cwd=scratch, env=env,
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                    start_new_session=True)
+            try:
+                probe_env = dict(env, AMENT_PREFIX_PATH=str(REPO / '.venv'))
+                assert joint_states_seen(probe_env, 60.0), line
+            finally:
+                os.killpg(proc.pid, signal.SIGINT)
+                out = proc.communicate(timeout=60)[0].decode(errors='replace')
+            assert proc.returncode == 0, f'{line}\n{out[-3000:]}'
+        else:
+            res = subprocess.run(['bash', '-c', script], cwd=scratch, env=env,
+                                 capture_output=True, text=True, timeout=300)
+            assert res.returncode == 0, f'{line}\n{res.stdout[-2000:]}\n{res.stderr[-2000:]}'
+    assert wait_for(lambda: (scratch / 'runs' / 'ss.png').is_file(), 1.0)
