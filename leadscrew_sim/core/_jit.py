@@ -4,6 +4,9 @@ The one set of numba compile options shared by every kernel function.
 friction, lcp and kernel decorate all their compiled functions with
 ``kernel_jit``, so caller and callee are always compiled with the same flags.
 """
+import hashlib
+import os
+
 try:  # numba is the accelerator (see README, "Why numba"); plain Python also works.
     from numba import njit
 except ImportError:  # pragma: no cover
@@ -26,4 +29,65 @@ except ImportError:  # pragma: no cover
 # reference counting of their array arguments is skipped.
 JIT_OPTIONS = dict(cache=True, error_model='numpy', fastmath=False, _nrt=False)
 
-kernel_jit = njit(**JIT_OPTIONS)
+#: The compiled functions, for refresh_cache().
+DISPATCHERS = []
+
+#: The modules whose source the compiled code depends on: their own functions, and the
+#: constants of layout and drive that numba freezes into the code of every user.
+KERNEL_SOURCES = ('_jit.py', 'layout.py', 'drive.py', 'friction.py', 'lcp.py', 'kernel.py')
+
+#: File beside numba's cache entries holding the digest of KERNEL_SOURCES they came from.
+DIGEST_FILE = 'leadscrew_sim_kernel.sha256'
+
+
+def kernel_jit(fn):
+    """Compile ``fn`` with :data:`JIT_OPTIONS` and register it for :func:`refresh_cache`."""
+    dispatcher = njit(**JIT_OPTIONS)(fn)
+    DISPATCHERS.append(dispatcher)
+    return dispatcher
+
+
+def sources_digest():
+    """Return the SHA-256 of the kernel's source files, in :data:`KERNEL_SOURCES` order."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    h = hashlib.sha256()
+    for name in KERNEL_SOURCES:
+        with open(os.path.join(here, name), 'rb') as fh:
+            h.update(fh.read())
+    return h.hexdigest()
+
+
+def refresh_cache():
+    """
+    Drop numba's cached kernel code if it was compiled from other sources than these.
+
+    numba keys each cache entry on the source file of its own function only, so
+    a change of a constant in layout.py (frozen into the code of friction.py,
+    kernel.py, ...) or of the options here would otherwise go on running stale
+    code. The digest of all kernel sources is kept beside the cache entries;
+    when it differs, every entry is flushed before the first call compiles.
+    Called once, by kernel.py, after all kernel functions are defined.
+    """
+    digest = sources_digest()
+    by_dir = {}
+    for d in DISPATCHERS:
+        cache = getattr(d, '_cache', None)
+        path = getattr(cache, 'cache_path', None)
+        if path:
+            by_dir.setdefault(path, []).append(cache)
+    for path, caches in by_dir.items():
+        stamp = os.path.join(path, DIGEST_FILE)
+        try:
+            with open(stamp) as fh:
+                if fh.read().strip() == digest:
+                    continue
+        except OSError:
+            pass
+        for cache in caches:
+            cache.flush()
+        try:
+            os.makedirs(path, exist_ok=True)
+            with open(stamp, 'w') as fh:
+                fh.write(digest + '\n')
+        except OSError:
+            pass                     # a read-only cache: numba then compiles in memory

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from ._jit import kernel_jit
+from ._jit import kernel_jit, refresh_cache
 from .drive import (
     FAULT_FOLLOWING_ERROR, FAULT_NONE, FAULT_TORQUE_LIMIT, MODE_POSITION, MODE_QUICKSTOP,
     MODE_TORQUE, update_period, velocity_loop,
@@ -824,3 +824,6 @@ def run_series(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     steps done (fewer on a non-finite state).
     """
     return _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec)
+
+
+refresh_cache()

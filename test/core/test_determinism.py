@@ -36,7 +36,7 @@ print(h.hexdigest())
 
 def run(env, n):
     out = subprocess.run([sys.executable, '-c', SCRIPT, str(n)], env=env, capture_output=True,
-                         text=True, timeout=900)
+                         text=True, timeout=900, cwd=env['NUMBA_CACHE_DIR'] + '/..')
     assert out.returncode == 0, out.stderr[-2000:]
     return out.stdout.strip()
 
@@ -50,3 +50,39 @@ def test_fresh_compile_cached_load_and_plain_python_agree(tmp_path):
     cached = run(env, n)
     plain = run(dict(env, NUMBA_DISABLE_JIT='1'), n)
     assert compiled == cached == plain
+
+
+PROBE = r'''
+import sys
+from leadscrew_sim import LeadScrewModel, load_preset
+from leadscrew_sim.core import kernel
+m = LeadScrewModel(load_preset('tr12x3'))
+m.advance(0.1)
+print(len(kernel.step.stats.cache_hits), len(kernel.step.stats.cache_misses))
+'''
+
+
+@pytest.mark.slow
+def test_a_change_of_a_layout_constant_is_never_served_stale_from_the_cache(tmp_path):
+    # numba keys a cache entry on its own source file; layout.py's constants are frozen
+    # into kernel.py's code, so an edit of layout.py alone must still recompile kernel.py.
+    import shutil
+    from helpers import REPO
+    pkg = tmp_path / 'src' / 'leadscrew_sim'
+    shutil.copytree(REPO / 'leadscrew_sim', pkg, ignore=shutil.ignore_patterns('__pycache__'))
+    (tmp_path / 'src' / 'config').symlink_to(REPO / 'config')
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'),
+               PYTHONPATH=str(tmp_path / 'src'))
+
+    def probe():
+        out = subprocess.run([sys.executable, '-c', PROBE], env=env, cwd=tmp_path,
+                             capture_output=True, text=True, timeout=900)
+        assert out.returncode == 0, out.stderr[-2000:]
+        hits, misses = map(int, out.stdout.split())
+        return hits, misses
+    assert probe() == (0, 1)          # compiled
+    assert probe() == (1, 0)          # loaded from the cache
+    with open(pkg / 'core' / 'layout.py', 'a') as fh:
+        fh.write('\n# an edit of layout.py alone\n')
+    assert probe() == (0, 1)          # compiled again, not served stale
+    assert probe() == (1, 0)
