@@ -36,7 +36,7 @@ print(h.hexdigest())
 
 def run(env, n):
     out = subprocess.run([sys.executable, '-c', SCRIPT, str(n)], env=env, capture_output=True,
-                         text=True, timeout=900, cwd=env['NUMBA_CACHE_DIR'] + '/..')
+                         text=True, timeout=900, cwd=os.path.dirname(env['NUMBA_CACHE_DIR']))
     assert out.returncode == 0, out.stderr[-2000:]
     return out.stdout.strip()
 
