@@ -28,20 +28,17 @@ the recorder (:mod:`leadscrew_sim.io.recorder`). Topics and QoS come from
 :data:`leadscrew_sim.io.topics.TOPICS`; parameters: :mod:`.parameters`;
 diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`.
 """
-import importlib
 import json
 import math
 import os
 import signal
 import sys
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_srvs.srv import SetBool, Trigger
 
@@ -51,20 +48,19 @@ from ..core.drive import FAULT_NAMES, FAULT_NONE
 from ..core.faults import SimulationFault
 from ..core.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
-from ..io import tf as TF
-from ..io.description import DescriptionError, JointTree, render_urdf, xacro_args
+from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
-from ..io.qos import qos_profile_yaml
-from ..io.run_file import DESCRIPTION_TOPICS
 from ..io.recorder import Recorder
 from ..io.session import StorageOptions
 from ..io.topics import SWITCH_TOPICS, TOPICS
-from ..io.cdr import encode_bool
 from .commands import CommandInputs
+from .description import RobotDescription
 from .diagnostics import diagnostic_array
+from .interfaces import message_class, qos_profile
+from .loops import ClockLoops
 from .parameters import (DEFAULT_PRESET, declare_parameters, integers_as_doubles, StartupError,
                          validate_changes)
-from .timing import DeadlineSleeper, LoopStats
+from .timing import LoopStats
 
 __all__ = ['COMMAND_QOS', 'DEFAULT_PRESET', 'LeadScrewSimNode', 'main', 'make_executor',
            'NODE_NAME', 'qos_profile', 'STATE_QOS', 'StartupError']
@@ -73,24 +69,11 @@ NODE_NAME = 'leadscrew_sim_node'
 NS = 1_000_000_000
 
 
-def qos_profile(spec):
-    """Return the rclpy QoSProfile of a QoS dict of :data:`leadscrew_sim.io.topics.TOPICS`."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=spec['depth'],
-                      reliability=ReliabilityPolicy[spec['reliability'].upper()],
-                      durability=DurabilityPolicy[spec['durability'].upper()])
-
-
-def message_class(type_name):
-    """Return the message class of a type name such as ``'std_msgs/msg/Float64'``."""
-    package, kind, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{package}.{kind}'), name)
-
-
 COMMAND_QOS = qos_profile(TOPICS['torque_command'][2])
 STATE_QOS = qos_profile(TOPICS['joint_states'][2])
 
 
-class LeadScrewSimNode(Node):
+class LeadScrewSimNode(ClockLoops, Node):
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
@@ -222,44 +205,12 @@ class LeadScrewSimNode(Node):
         self._pace_reset = True
 
     def _build_description(self):
-        """Render the URDF; with publish_tf, publish it and create the TF publishers."""
-        self._tree = self._tf = None
-        self._desc_pubs = {}
-        try:
-            self._urdf = render_urdf(xacro_args(self.params, self.settings.joint_prefix))
-            self._tree = JointTree(self._urdf)
-        except (DescriptionError, ValueError) as exc:
-            self.get_logger().warn(f'no robot description (TF not published or recorded): '
-                                   f'{exc}')
-            return
-        self._tf = TF.TfEncoder(self._tree.moving_frames)
-        for key, (rel, type_name, _qos) in DESCRIPTION_TOPICS.items():
-            self._rec_topic[key] = self.resolve_topic_name(rel)
-        if not self.settings.publish_tf:
-            return
-        for key, (rel, type_name, qos) in DESCRIPTION_TOPICS.items():
-            try:
-                msg_type = message_class(type_name)
-            except ImportError:
-                self.get_logger().warn(f'publish_tf: {type_name} is not installed; {rel} is '
-                                       'recorded but not published')
-                continue
-            self._desc_pubs[key] = self.create_publisher(msg_type, rel, qos_profile(qos))
-        self._publish_description(self._sim_now())
-
-    def _description_messages(self, stamp_ns):
-        """Return [(key, bytes)] of robot_description and /tf_static at ``stamp_ns``."""
-        static = [(stamp_ns, p, c, t, r) for p, c, t, r in self._tree.static_transforms()]
-        return [('robot_description', TF.encode_string(self._urdf)),
-                ('/tf_static', TF.encode_tf_message(static))]
-
-    def _publish_description(self, stamp_ns, record=False):
-        """Publish (with publish_tf) and record (if ``record``) the description messages."""
-        for key, data in self._description_messages(stamp_ns):
-            if key in self._desc_pubs:
-                self._desc_pubs[key].publish(data)
-            if record and self.recorder.active:
-                self.recorder.write(self._rec_topic[key], data, stamp_ns)
+        """Render the URDF (its channels are recorded); publish it with publish_tf."""
+        self._desc = RobotDescription.make(self, self.params, self.settings.joint_prefix,
+                                           self.settings.publish_tf)
+        if self._desc is not None:
+            self._rec_topic.update(self._desc.topics)
+            self._desc.publish_static(self._sim_now(), None)
 
     def _make_serializers(self):
         self._encoder = StateEncoder(self.settings.joint_prefix)
@@ -276,9 +227,8 @@ class LeadScrewSimNode(Node):
         chans = {self._rec_topic[topic]: (type_name, None, role == 'command')
                  for topic, (type_name, role, _qos) in TOPICS.items()
                  if topic in self._rec_topic}
-        if self._tree is not None:
-            for key, (_rel, type_name, qos) in DESCRIPTION_TOPICS.items():
-                chans[self._rec_topic[key]] = (type_name, qos_profile_yaml(**qos), False)
+        if self._desc is not None:
+            chans.update(self._desc.channels())
         return chans
 
     def _start_recording(self):
@@ -286,8 +236,8 @@ class LeadScrewSimNode(Node):
         if not self.recorder.start(StorageOptions.from_run_settings(self.settings),
                                    self.recording_channels(), self.all_parameter_values()):
             return None
-        if self._tree is not None:
-            self._publish_description(self._sim_now(), record=True)
+        if self._desc is not None:
+            self._desc.publish_static(self._sim_now(), self.recorder)
         path = self.recorder.wait_for_path(timeout=5.0)
         if path:
             self.get_logger().info(f'recording to {os.path.abspath(path)}')
@@ -402,12 +352,8 @@ class LeadScrewSimNode(Node):
         stamp, values = self._sim_now(), self.model.joint_values()
         for topic, data in self._encoder.tick(stamp, values):
             self._emit(topic, data)
-        if self._tf is not None and (self.recorder.active or '/tf' in self._desc_pubs):
-            data = self._tf(stamp, self._tree.moving_values(values[0], values[1]))
-            if '/tf' in self._desc_pubs:
-                self._desc_pubs['/tf'].publish(data)
-            if self.recorder.active:
-                self.recorder.write(self._rec_topic['/tf'], data, stamp)
+        if self._desc is not None:
+            self._desc.publish_tf(stamp, values[0], values[1], self.recorder)
 
     def _publish_switches(self, switches):
         """Publish and record the switch states (on a change and at 10 Hz)."""
@@ -435,91 +381,6 @@ class LeadScrewSimNode(Node):
         self.loop.steps(1)
         self.recorder.flush()
 
-    # -- main loops ------------------------------------------------------------------
-    def stop(self):
-        """Ask the main loop to finish (signal-safe)."""
-        self._running = False
-
-    def run(self, executor):
-        """Run the clock mode's main loop until stop()."""
-        self._executor = executor
-        self.loop.run_start = time.monotonic_ns()
-        self._next_diag = self.loop.run_start + NS
-        getattr(self, f'_run_{self.mode}')()
-        self.loop.run_end = time.monotonic_ns()
-
-    def _spin(self):
-        """
-        Process the pending events: one spin_once, again while commands keep coming.
-
-        At most 16 events and about a quarter of a period per tick: a command
-        flood (tens of thousands per second from another process) then delays
-        commands (the latest one wins anyway) instead of starving the loop.
-        """
-        ex = self._executor
-        end = time.monotonic_ns() + self._spin_budget_ns
-        for _ in range(16):
-            before = self._events
-            ex.spin_once(timeout_sec=0)
-            if self._events == before or time.monotonic_ns() >= end:
-                break
-
-    def _run_realtime(self):
-        period, loop = self.dt_ns, self.loop
-        sleeper = DeadlineSleeper()
-        deadline = time.monotonic_ns() + period
-        while self._running:
-            sleeper.sleep_until(deadline)
-            now = time.monotonic_ns()
-            if now < deadline:
-                continue                    # woken early by a signal
-            late = now - deadline
-            loop.late(late)
-            self.tick_time = deadline
-            self._spin()
-            due = 1 + late // period
-            steps = min(due, 1 + self.settings.max_catchup_steps)
-            for i in range(steps):
-                self._step(deadline + i * period)
-            loop.catch_up(due, steps)
-            deadline += due * period
-            loop.steps(steps)
-            self.recorder.flush()
-            if now >= self._next_diag:
-                self._publish_diagnostics(now)
-
-    def _run_stepped(self):
-        sleeper = DeadlineSleeper()
-        deadline = 0
-        while self._running:
-            rtf = self.settings.real_time_factor
-            if rtf > 0.0:
-                period = int(round(self.dt_ns / rtf))
-                if self._pace_reset:
-                    deadline = time.monotonic_ns()
-                    self._pace_reset = False
-                deadline += period
-                sleeper.sleep_until(deadline)
-            self.tick_time = self._sim_now()
-            self._spin()
-            self._step(self.tick_time)
-            self.loop.steps(1)
-            self.recorder.flush()
-            now = time.monotonic_ns()
-            if now >= self._next_diag:
-                self._publish_diagnostics(now)
-
-    def _run_lockstep(self):
-        ex = self._executor
-        self._pub_clock.publish(self._ser_clock(self._sim_now(), ()))
-        while self._running:
-            ex.spin_once(timeout_sec=0.05)
-            now = time.monotonic_ns()
-            if now >= self._next_diag:
-                self._publish_diagnostics(now)
-                self._pub_clock.publish(self._ser_clock(self._sim_now(), ()))
-
-    # -- diagnostics ------------------------------------------------------------------
     def timing_stats(self):
         """Return the timing statistics of the run so far (lateness in ns)."""
         return dict(
