@@ -1,7 +1,7 @@
 """
 Demo: start the node and drive the nut up and down with torque pulses.
 
-``python -m leadscrew_sim.demo --preset tr12x3 --duration 0`` (``make run``)
+``python -m leadscrew_sim.ros.demo --preset tr12x3 --duration 0`` (``make run``)
 starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
 pattern on ``torque_command`` and prints, every 0.5 s, the time, the
 commanded torque, the nut position [mm] and the thread contact state.
@@ -63,11 +63,10 @@ def pulse_torque(t, x, state, hold, half, hand_sign):
     return hold
 
 
-def main(argv=None):
-    """Run the demo; return the exit code."""
+def _parse(argv):
+    """Return (args, preset name, ScrewParams) or an exit code for a bad preset."""
     from .node import DEFAULT_PRESET
     from ..core import load_preset, ParameterError
-
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--preset', default=DEFAULT_PRESET,
                     help='preset name (config/<name>.yaml); "default" = ' + DEFAULT_PRESET)
@@ -76,35 +75,24 @@ def main(argv=None):
     args = ap.parse_args(argv)
     preset = DEFAULT_PRESET if args.preset == 'default' else args.preset
     try:
-        params = load_preset(preset)
+        return args, preset, load_preset(preset)
     except ParameterError as exc:
         print(f'demo: {exc}', file=sys.stderr)
         return 2
 
-    # Stay off other people's ROS graph: this host only, and not domain 0.
+
+def _isolate():
+    """Stay off other people's ROS graph: this host only, and not domain 0."""
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     if not os.environ.get('ROS_DOMAIN_ID'):
         os.environ['ROS_DOMAIN_ID'] = DEFAULT_DOMAIN_ID
 
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
+
+def _subscribe(node, latest):
+    """Keep the latest nut position and contact/thread state in ``latest``."""
     from diagnostic_msgs.msg import DiagnosticArray
     from std_msgs.msg import Float64
-
-    hold, half = torque_band(params)
-    print(f'demo: preset {preset} ({params.hand}-hand thread: a positive torque moves the '
-          f'nut toward {"-x" if params.hand == "right" else "+x"}); holding torque '
-          f'{hold:+.3f} N m, pulses of +-{PULSE_GAIN * half:.3f} N m; '
-          f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
-    child = subprocess.Popen(
-        [sys.executable, '-m', 'leadscrew_sim.node', '--ros-args', '-p', f'preset:={preset}'],
-        start_new_session=True)
-
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('leadscrew_sim_demo')
-    latest = {'x': None, 'contact': '?'}
 
     def on_x(msg):
         latest['x'] = msg.data
@@ -117,10 +105,67 @@ def main(argv=None):
 
     node.create_subscription(Float64, 'nut_position', on_x, 10)
     node.create_subscription(DiagnosticArray, 'diagnostics', on_diag, 10)
+
+
+def _drive(args, params, hold, half, pub, executor, latest, child, stop):
+    """Publish the pulse pattern and print the state until stopped; return the exit code."""
+    from std_msgs.msg import Float64
+    print('demo: waiting for the node...', flush=True)
+    while latest['x'] is None and not stop['now']:
+        executor.spin_once(timeout_sec=0.05)
+        if child.poll() is not None:
+            print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
+            return child.returncode or 1
+    state = {'target': TARGET}
+    t0 = time.monotonic()
+    next_print = PULSE_PERIOD / 2.0          # print between pulses
+    while not stop['now']:
+        t = time.monotonic() - t0
+        if args.duration and t >= args.duration:
+            break
+        torque = pulse_torque(t, latest['x'], state, hold, half, params.hand_sign)
+        pub.publish(Float64(data=torque))
+        executor.spin_once(timeout_sec=0.01)
+        if t >= next_print:
+            next_print += PRINT_PERIOD
+            x = latest['x']
+            print(f't={t:7.2f} s  torque={torque:+8.4f} N m '
+                  f'(last pulse {state.get("last", hold):+8.4f})  '
+                  f'nut={x * 1e3:+9.3f} mm  contact={latest["contact"]} '
+                  f'({latest.get("thread", "?")})', flush=True)
+        if child.poll() is not None:
+            print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
+            return child.returncode or 1
+    return 0
+
+
+def main(argv=None):
+    """Run the demo; return the exit code."""
+    parsed = _parse(argv)
+    if isinstance(parsed, int):
+        return parsed
+    args, preset, params = parsed
+    _isolate()
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from std_msgs.msg import Float64
+
+    hold, half = torque_band(params)
+    print(f'demo: preset {preset} ({params.hand}-hand thread: a positive torque moves the '
+          f'nut toward {"-x" if params.hand == "right" else "+x"}); holding torque '
+          f'{hold:+.3f} N m, pulses of +-{PULSE_GAIN * half:.3f} N m; '
+          f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'leadscrew_sim.node', '--ros-args', '-p', f'preset:={preset}'],
+        start_new_session=True)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('leadscrew_sim_demo')
+    latest = {'x': None, 'contact': '?'}
+    _subscribe(node, latest)
     pub = node.create_publisher(Float64, 'torque_command', 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-
     stop = {'now': False}
 
     def on_signal(_signum, _frame):
@@ -128,36 +173,8 @@ def main(argv=None):
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    code = 0
     try:
-        print('demo: waiting for the node...', flush=True)
-        while latest['x'] is None and not stop['now']:
-            executor.spin_once(timeout_sec=0.05)
-            if child.poll() is not None:
-                print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
-                return child.returncode or 1
-        state = {'target': TARGET}
-        t0 = time.monotonic()
-        next_print = PULSE_PERIOD / 2.0          # print between pulses
-        torque = hold
-        while not stop['now']:
-            t = time.monotonic() - t0
-            if args.duration and t >= args.duration:
-                break
-            torque = pulse_torque(t, latest['x'], state, hold, half, params.hand_sign)
-            pub.publish(Float64(data=torque))
-            executor.spin_once(timeout_sec=0.01)
-            if t >= next_print:
-                next_print += PRINT_PERIOD
-                x = latest['x']
-                print(f't={t:7.2f} s  torque={torque:+8.4f} N m '
-                      f'(last pulse {state.get("last", hold):+8.4f})  '
-                      f'nut={x * 1e3:+9.3f} mm  contact={latest["contact"]} '
-                      f'({latest.get("thread", "?")})', flush=True)
-            if child.poll() is not None:
-                print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
-                code = child.returncode or 1
-                break
+        code = _drive(args, params, hold, half, pub, executor, latest, child, stop)
     finally:
         if child.poll() is None:
             child.send_signal(signal.SIGINT)

@@ -67,8 +67,22 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
                                               'until ~/clear_fault')
     if m.fault:
         level, msg = DiagnosticStatus.ERROR, f'simulation fault: {m.fault}'
+    values = _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age,
+                     stale, loop, lateness, counts, recorder)
+    status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
+                              hardware_id=f'leadscrew_sim/{preset}',
+                              values=[KeyValue(key=k, value=v) for k, v in values])
+    arr = DiagnosticArray(status=[status])
+    arr.header.stamp = stamp_msg(sim_time_ns)
+    return arr
+
+
+def _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age, stale,
+            loop, lateness, counts, recorder):
+    """Return the (key, value) pairs of the status, values formatted as text."""
+    rec_file, rec_bytes, rec_msgs, rec_err = recorder.status()
     commands, rejected, ignored = counts
-    values = [
+    return [
         ('contact', o.contact_name), ('thread', 'stick' if o.stuck else 'slip'),
         ('self_locking', str(p.self_locking)), ('efficiency', f'{eff:.4f}'),
         ('nut_position_m', f'{o.nut_position:.6f}'),
@@ -97,9 +111,3 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         ('recording_error', rec_err or ''),
         ('recording_dropped', str(recorder.dropped)),
     ]
-    status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
-                              hardware_id=f'leadscrew_sim/{preset}',
-                              values=[KeyValue(key=k, value=v) for k, v in values])
-    arr = DiagnosticArray(status=[status])
-    arr.header.stamp = stamp_msg(sim_time_ns)
-    return arr
