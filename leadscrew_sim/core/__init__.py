@@ -9,7 +9,7 @@ import importlib
 
 #: Public name -> module that defines it.
 _WHERE = {
-    'LeadScrewModel': 'model', 'StepOutput': 'model', 'ParameterError': 'fields',
+    'LeadScrewModel': 'model', 'StepOutput': 'output', 'ParameterError': 'fields',
     'ScrewParams': 'params', 'SimulationFault': 'faults', 'load_preset': 'presets',
     'preset_names': 'presets',
 }

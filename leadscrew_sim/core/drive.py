@@ -282,7 +282,7 @@ def loop_response(p, dt=1e-3, nsub=None):
 
     """
     if nsub is None:
-        from .model import auto_substep
+        from .packing import auto_substep
         nsub = max(1, math.ceil(dt / auto_substep(p) - 1e-9))
     m = update_period(nsub, dt, p.drive_rate)
     td = m * dt / nsub

@@ -47,7 +47,8 @@ from ..core.commands import COMMAND_LOG_TIME, NutMap
 from ..core.drive import FAULT_NAMES, FAULT_NONE
 from ..core.faults import SimulationFault
 from ..core.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
-from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
+from ..core.model import LeadScrewModel
+from ..core.packing import MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder

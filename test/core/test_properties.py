@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from leadscrew_sim import LeadScrewModel, ParameterError, ScrewParams
-from leadscrew_sim.core.model import stiffest_mode
+from leadscrew_sim.core.packing import stiffest_mode
 
 settings.register_profile('ci', derandomize=True)
 settings.register_profile('explore', derandomize=False)
