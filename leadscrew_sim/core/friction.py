@@ -4,7 +4,7 @@ The friction law of the thread contact (physics.md section 6), compiled.
 The law is self-contained: the kernel never names its parameters. They live
 in the friction block of the parameter vector (N_FRICTION slots from
 layout.P_FRICTION), whose slots this module alone assigns (P_MUS .. P_ZCUT
-below). pack_friction (plain Python, called by model.pack_params) fills them
+below). pack_friction (plain Python, called by packing.pack_params) fills them
 from ScrewParams. friction_constants(P), called by the kernel once per call,
 returns the law's constants as the tuple fc, forming drop = mu_s' - mu_k' and
 ivst = 1 / v_st from the slots; the law functions take fc.
