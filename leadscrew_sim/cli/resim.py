@@ -12,12 +12,12 @@ from pathlib import Path
 import struct
 
 from .args import CliError, NS, parse_sets, Progress
-from ..core.commands import CommandHold, NutMap, REJECTED
+from ..core.commands import CommandHold, JOINT_COMMAND_MODES, NutMap, REJECTED
 from ..core.params import ParameterError, ScrewParams
 from ..io import cdr as C, messages as M, topics as T
 from ..io.mcap_reader import Recording
-from ..io.run_file import (CLI_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
-                           run_setting, RunWriter, UPDATE_RECORD)
+from ..io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, params_from_record,
+                           RESET_RECORD, run_setting, RunWriter, UPDATE_RECORD)
 
 HELP = 're-simulate a recording and compare'
 
@@ -116,7 +116,7 @@ class Resim:
         """Collect the parameter updates and resets; return their sort keys."""
         order = []
         for name, data in self.rec.metadata:
-            if name in (UPDATE_RECORD, RESET_RECORD) and 'log_time_ns' in data:
+            if name in (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD) and 'log_time_ns' in data:
                 try:
                     log_time = int(data['log_time_ns'])
                     before = int(data.get('messages_at_log_time', -1))
@@ -193,9 +193,17 @@ class Resim:
             except ParameterError as exc:
                 raise CliError(f'{self.rec.path}: recorded {exc}') from None
             model.set_params(params)
+            if 'command_timeout' in data and self.clock_mode != 'realtime':
+                hold.timeout = run_setting(data, 'command_timeout', hold.timeout)
+            if 'joint_command_mode' in data:
+                hold.joint_mode = JOINT_COMMAND_MODES[run_setting(data, 'joint_command_mode',
+                                                                  'auto')]
         elif kind == RESET_RECORD:
             model.reset()
             hold.reset()
+            hold.nut_map = NutMap.of_model(model)
+        elif kind == CLEAR_FAULT_RECORD:
+            model.clear_fault()
 
     def compare(self, new_states):
         """

@@ -30,6 +30,8 @@ PARAMS_RECORD = 'leadscrew_sim_parameters'
 UPDATE_RECORD = 'leadscrew_sim_parameters_update'
 #: Metadata record of a ``~/reset`` of the node.
 RESET_RECORD = 'leadscrew_sim_reset'
+#: Metadata record of a ``~/clear_fault`` that cleared a latched drive fault.
+CLEAR_FAULT_RECORD = 'leadscrew_sim_clear_fault'
 #: Metadata record of the command line that wrote the file.
 CLI_RECORD = 'leadscrew_sim_cli'
 
@@ -47,9 +49,9 @@ SIMULATE_SETTINGS = dict(RunSettings(command_timeout=0.0).to_dict(), clock_mode=
 
 _RUN_FIELDS = {f.name: f for f in dataclasses.fields(RunSettings)}
 
-__all__ = ['CLI_RECORD', 'DESCRIPTION_TOPICS', 'PARAMS_RECORD', 'RESET_RECORD', 'UPDATE_RECORD',
-           'RunFileError', 'RunWriter', 'SIMULATE_SETTINGS', 'params_from_record',
-           'parameters_record', 'run_setting']
+__all__ = ['CLEAR_FAULT_RECORD', 'CLI_RECORD', 'DESCRIPTION_TOPICS', 'PARAMS_RECORD',
+           'RESET_RECORD', 'UPDATE_RECORD', 'RunFileError', 'RunWriter', 'SIMULATE_SETTINGS',
+           'params_from_record', 'parameters_record', 'run_setting']
 
 
 class RunFileError(OSError):

@@ -120,6 +120,8 @@ class RecordingSession(Guarded):
         if self.max_total_bytes and not self.split_bytes:
             self.split_bytes = max(MIN_SPLIT_BYTES, self.max_total_bytes // 8)
         self.deleted = []        # paths removed to keep within max_total_bytes
+        self._latched_ids = set()    # channels with transient local QoS
+        self._latched = {}           # their last message: id -> (bytes, publish time)
         self.split_ns = (int(options.split_seconds * 1e9)
                          if math.isfinite(options.split_seconds) else 0)
         self.flush_interval = options.flush_interval
@@ -236,6 +238,8 @@ class RecordingSession(Guarded):
             else:
                 ros2msg_definition(msg_type)     # same errors as with an open file
             self._channels.append((topic, msg_type, qos, trim))
+            if 'transient_local' in qos:
+                self._latched_ids.add(cid)
             return cid
 
     def write(self, channel_id, data, log_time_ns, publish_time_ns=None):
@@ -252,9 +256,15 @@ class RecordingSession(Guarded):
                 self._rotate()
                 if self._rec is None:
                     return
+                # A latched (transient local) topic's last message starts every new file,
+                # so each file holds, e.g., the robot description, as a late subscriber would.
+                for cid, (payload, publish) in sorted(self._latched.items()):
+                    self._rec.write(cid, payload, log_time_ns, publish)
             if self._file_t0 is None:
                 self._file_t0 = int(log_time_ns)
             self._rec.write(channel_id, data, log_time_ns, publish_time_ns)
+            if channel_id in self._latched_ids:
+                self._latched[channel_id] = (bytes(data), publish_time_ns)
 
     def flush(self):
         """Write the open chunk of the current file and flush it."""

@@ -79,9 +79,19 @@ class CommandInputs:
         """Follow a run-time change of command_timeout [s]."""
         self.hold.timeout = float(timeout)
 
-    def reset(self):
-        """Forget every command (``~/reset``); the counters stay."""
+    def reset(self, nut_map=None):
+        """
+        Forget every command (``~/reset``); the counters stay.
+
+        Parameters
+        ----------
+        nut_map : leadscrew_sim.core.commands.NutMap, optional
+            The nut-to-motor map of the state reset to (as after homing again).
+
+        """
         self.hold.reset()
+        if nut_map is not None:
+            self.hold.nut_map = nut_map
         self.cmd_wall = None
 
     def _reject(self, what):

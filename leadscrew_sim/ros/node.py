@@ -52,6 +52,7 @@ from ..core.packing import MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
+from ..io.run_file import CLEAR_FAULT_RECORD, UPDATE_RECORD
 from ..io.session import StorageOptions
 from ..io.topics import SWITCH_TOPICS, TOPICS
 from .commands import CommandInputs
@@ -151,11 +152,14 @@ class LeadScrewSimNode(ClockLoops, Node):
             for note in set(change.params.advisories()) - set(self.params.advisories()):
                 self.get_logger().warn(note)
             self.params = change.params
-            self.recorder.add_metadata('leadscrew_sim_parameters_update', dict(
+            self.recorder.add_metadata(UPDATE_RECORD, dict(
                 {k: str(v) for k, v in change.physics.items()},
                 log_time_ns=str(self._sim_now())))
         if change.settings is not None:
             self._apply_settings(change.run, change.settings)
+            self.recorder.add_metadata(UPDATE_RECORD, dict(
+                {k: str(getattr(change.settings, k)) for k in change.run},
+                log_time_ns=str(self._sim_now())))
         return SetParametersResult(successful=True)
 
     def _apply_settings(self, names, new):
@@ -287,7 +291,7 @@ class LeadScrewSimNode(ClockLoops, Node):
 
     def _on_reset(self, _request, response):
         self.model.reset()
-        self.inputs.reset()
+        self.inputs.reset(NutMap.of_model(self.model))
         self.recorder.add_metadata('leadscrew_sim_reset', {'log_time_ns': self._sim_now()})
         response.success = True
         response.message = (f'reset to the initial state at stamp {self._sim_now() / NS:.6f} s '
@@ -298,6 +302,8 @@ class LeadScrewSimNode(ClockLoops, Node):
     def _on_clear_fault(self, _request, response):
         code = self.model.clear_fault()
         self._fault_seen = 0
+        if code != FAULT_NONE:
+            self.recorder.add_metadata(CLEAR_FAULT_RECORD, {'log_time_ns': self._sim_now()})
         if code == FAULT_NONE:
             response.success, response.message = True, 'no drive fault latched'
         else:

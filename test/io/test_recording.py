@@ -23,7 +23,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Header
+from std_msgs.msg import Float64, Header, String
 import yaml
 
 FLUSH = 0.2          # s, flush interval of the crash tests
@@ -357,3 +357,22 @@ def test_prefix_validation(tmp_path, prefix):
     with pytest.raises(ValueError, match='record_prefix'):
         RecordingSession(StorageOptions(tmp_path, prefix=prefix))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_every_split_file_starts_with_the_latched_topics(tmp_path):
+    from leadscrew_sim.io.qos import qos_profile_yaml
+    session = RecordingSession(StorageOptions(tmp_path, split_seconds=2.0))
+    latched = session.add_channel('/robot_description', 'std_msgs/msg/String',
+                                  qos_profile_yaml(durability='transient_local', depth=1))
+    cid = session.add_channel('/x', 'std_msgs/msg/Float64')
+    session.write(latched, serialize_message(String(data='<robot/>')), 0)
+    for k in range(600):                              # 6 s of log time at 100 Hz
+        session.write(cid, serialize_message(Float64(data=float(k))), 10**7 * k)
+    session.close()
+    assert len(session.files) == 3
+    for j, f in enumerate(session.files):
+        got, _, _ = _read_mcap(f)
+        first = got[0]
+        assert first[0] == '/robot_description' and first[3].data == '<robot/>', (j, first)
+        assert first[2] == 2 * 10**9 * j              # at the file's first log time
+        assert [t for t, *_ in got].count('/robot_description') == 1
