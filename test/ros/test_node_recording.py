@@ -514,3 +514,35 @@ def test_lockstep_command_timeout_resim_matches_node(live, tmp_path):
     assert efforts == [0.3] * 8 + [0.0] * 5, efforts
     r = cli_ok('resim', only_file(tmp_path, 'age'), '--output', tmp_path / 'r.mcap', '--quiet')
     assert _resim_rows(r.stdout)[2] == 0.0, r.stdout
+
+
+@pytest.mark.timeout(150)
+def test_a_run_time_setting_change_is_recorded_and_resim_applies_it(live, tmp_path):
+    from helpers import NODE, param_msg
+    from rcl_interfaces.srv import SetParameters
+    proc = NodeProcess(node_argv(tmp_path, 'set', 'clock_mode:=lockstep',
+                                 'command_timeout:=0.0'), tmp_path / 'node.log')
+    try:
+        states = live.states()
+        pub = live.publisher(Float64, 'torque_command')
+        jpub = live.publisher(JointState, 'joint_commands')
+        for k in range(13):
+            if k < 3:
+                pub.publish(Float64(data=0.3))
+            else:
+                if k == 4:     # from now on a command older than 5 ms times out
+                    res = live.call(SetParameters, f'{NODE}/set_parameters',
+                                    SetParameters.Request(
+                                        parameters=[param_msg('command_timeout', 0.005)]))
+                    assert res.results[0].successful, res.results[0].reason
+                jpub.publish(JointState(name=['other_joint'], effort=[0.0]))
+            assert live.spin_until(lambda: len(states) > k, 10.0), (k, log_text(proc))
+        assert proc.stop(signal.SIGINT, timeout=30.0) == 0, log_text(proc)
+    finally:
+        proc.stop(signal.SIGKILL)
+    efforts = [m.effort[0] for _t, m in states]
+    # The same ages as with the timeout set from the start: 0 N m from the step at 8 ms.
+    assert efforts == [0.3] * 8 + [0.0] * 5, efforts
+    # resim knows the timeout only from the recorded change (it starts with 0: none).
+    r = cli_ok('resim', only_file(tmp_path, 'set'), '--output', tmp_path / 'r.mcap', '--quiet')
+    assert _resim_rows(r.stdout)[2] == 0.0, r.stdout
