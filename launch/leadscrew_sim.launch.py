@@ -23,6 +23,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import Command, FindExecutable, LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
+from leadscrew_sim.io.description import xacro_args
 import yaml
 
 PACKAGE = 'leadscrew_sim'
@@ -42,16 +43,6 @@ ARGUMENTS = (
     ('record_dir', 'runs', 'directory of the MCAP recordings'),
     ('robot_state_publisher', 'false', 'also start robot_state_publisher with the URDF'),
 )
-
-#: xacro argument <- node parameter(s): the description follows the simulated axis.
-XACRO_FROM_PARAMETERS = {
-    'hand': 'hand',
-    'backlash': 'backlash',
-    'stroke_min': 'stroke_min',
-    'stroke_max': 'stroke_max',
-    'screw_diameter': 'major_diameter',
-    'max_torque': 'max_torque',
-}
 
 
 def _as_bool(name, text):
@@ -92,12 +83,8 @@ def _xacro_mappings(preset, params_file, share, logger):
         values.update(_ros_parameters(path))
     if params_file:
         values.update(_ros_parameters(params_file))
-    mappings = {}
-    if 'pitch' in values or 'starts' in values:
-        mappings['lead'] = float(values.get('pitch', 0.003)) * int(values.get('starts', 1))
-    for arg, param in XACRO_FROM_PARAMETERS.items():
-        if param in values:
-            mappings[arg] = values[param]
+    mappings = xacro_args(values)           # the package's one preset -> xacro mapping
+    del mappings['prefix']
     return mappings
 
 

@@ -148,9 +148,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         t_cmd [N m]);  d_mode: active mode;  d_qref: active target [rad];  d_int:
         integral I [rad];  d_tout: held drive torque command [N m];  d_phase: substeps
         since the last update;  d_fault: latched fault code;  d_tlim: time at the torque
-        limit [s];  d_qs: quick stop 0 none, 1 requested, 2 ramping (or holding after
-        it);  d_wqs: quick stop ramp [rad/s];  d_ferr: following error [rad];  d_wref:
-        velocity reference [rad/s];  sw_min, sw_max, home: switch states
+        limit [s];  d_qs: quick stop state: 0 none, 1 requested, 2 ramping or
+        holding the stop position;  d_wqs: quick stop ramp [rad/s];  d_ferr: following
+        error [rad];  d_wref: velocity reference [rad/s];  sw_min, sw_max, home: switch
+        states
       drive_on: the drive runs this step (mode not torque);  q_fb, w_fb: the drive's
         feedback [rad], [rad/s];  w_ref, w_ff, t_ff: velocity reference and
         feed-forwards;  w_lo, w_hi: bounds of w_ref [rad/s];  t_drv,

@@ -8,21 +8,37 @@ from .fields import ParameterError
 from .params import ScrewParams
 
 
-def config_dirs():
-    """Directories searched for preset YAML files, in order."""
-    dirs = []
-    if os.environ.get('LEADSCREW_SIM_CONFIG'):
-        dirs.append(Path(os.environ['LEADSCREW_SIM_CONFIG']))
+def package_data_dirs(name):
+    """
+    Return the existing directories of the package's data folder ``name``, in search order.
+
+    The source tree's ``<name>/`` (also an editable install), then
+    ``<prefix>/share/leadscrew_sim/<name>`` of the install prefix this package lies
+    in, of every ``AMENT_PREFIX_PATH`` entry and of ``sys.prefix``.
+
+    Parameters
+    ----------
+    name : str
+        ``'config'`` or ``'urdf'``.
+
+    """
     here = Path(__file__).resolve().parent
-    dirs.append(here.parents[1] / 'config')                 # source tree / editable
+    dirs = [here.parents[1] / name]                         # source tree / editable
     prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     prefixes += [sys.prefix]
     for parent in here.parents:                             # <prefix>/lib/pythonX/site-packages
         if parent.name == 'lib':
             prefixes.insert(0, str(parent.parent))
             break
-    dirs += [Path(p) / 'share' / 'leadscrew_sim' / 'config' for p in prefixes]
+    dirs += [Path(p) / 'share' / 'leadscrew_sim' / name for p in prefixes]
     return [d for d in dirs if d.is_dir()]
+
+
+def config_dirs():
+    """Directories searched for preset YAML files, in order (LEADSCREW_SIM_CONFIG first)."""
+    first = os.environ.get('LEADSCREW_SIM_CONFIG')
+    extra = [Path(first)] if first and Path(first).is_dir() else []
+    return extra + package_data_dirs('config')
 
 
 def preset_names():

@@ -16,13 +16,12 @@ yaw about the fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll).
 """
 from collections.abc import Mapping
 import math
-import os
-from pathlib import Path
 import re
-import sys
 import xml.etree.ElementTree as ET
 
 import numpy as np
+
+from ..core.presets import package_data_dirs
 
 #: The package's robot description, in ``urdf/`` of the source tree and the share directory.
 XACRO_FILE = 'leadscrew_axis.urdf.xacro'
@@ -89,24 +88,8 @@ def xacro_args(params, joint_prefix=''):
 
 
 def xacro_dirs():
-    """
-    Return the directories searched for :data:`XACRO_FILE`, in order (existing ones).
-
-    The source tree's ``urdf/`` (also an editable install), then
-    ``<prefix>/share/leadscrew_sim/urdf`` of the install prefix this package lies
-    in, of every ``AMENT_PREFIX_PATH`` entry and of ``sys.prefix`` (as
-    :func:`leadscrew_sim.core.presets.config_dirs` finds ``config/``).
-    """
-    here = Path(__file__).resolve().parent              # <...>/leadscrew_sim/io
-    dirs = [here.parents[1] / 'urdf']
-    prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
-    prefixes += [sys.prefix]
-    for parent in here.parents:                          # <prefix>/lib/pythonX/site-packages
-        if parent.name == 'lib':
-            prefixes.insert(0, str(parent.parent))
-            break
-    dirs += [Path(p) / 'share' / 'leadscrew_sim' / 'urdf' for p in prefixes]
-    return [d for d in dirs if d.is_dir()]
+    """Return the directories searched for :data:`XACRO_FILE`, in order (existing ones)."""
+    return package_data_dirs('urdf')
 
 
 def xacro_path():

@@ -491,16 +491,22 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     assert rows[('/joint_states', 'position[nut_joint]')][0] > 0.0
 
 
-@pytest.mark.timeout(90)
-def test_lockstep_command_timeout_resim_matches_node(live, tmp_path):
-    proc = NodeProcess(node_argv(tmp_path, 'age', 'clock_mode:=lockstep',
-                                 'command_timeout:=0.005'), tmp_path / 'node.log')
+def _aging_torque_run(live, tmp_path, prefix, timeout, on_tick=None):
+    """
+    Run a lockstep node: three 0.3 N m torque commands, then ticks that let it age.
+
+    ``timeout`` is the start-up command_timeout [s]; ``on_tick(k)`` runs before
+    tick k. Returns the applied efforts of the 13 states and resim's overall diff.
+    """
+    proc = NodeProcess(node_argv(tmp_path, prefix, 'clock_mode:=lockstep',
+                                 f'command_timeout:={timeout}'), tmp_path / 'node.log')
     try:
         states = live.states()
         pub = live.publisher(Float64, 'torque_command')
         jpub = live.publisher(JointState, 'joint_commands')
         for k in range(13):
-            # Three torque commands, then ticks that leave the torque command to age.
+            if on_tick is not None:
+                on_tick(k)
             if k < 3:
                 pub.publish(Float64(data=0.3))
             else:
@@ -509,40 +515,31 @@ def test_lockstep_command_timeout_resim_matches_node(live, tmp_path):
         assert proc.stop(signal.SIGINT, timeout=30.0) == 0, log_text(proc)
     finally:
         proc.stop(signal.SIGKILL)
-    efforts = [m.effort[0] for _t, m in states]
+    r = cli_ok('resim', only_file(tmp_path, prefix), '--output', tmp_path / 'r.mcap',
+               '--quiet')
+    return [m.effort[0] for _t, m in states], _resim_rows(r.stdout)[2]
+
+
+@pytest.mark.timeout(150)
+def test_lockstep_command_timeout_resim_matches_node(live, tmp_path):
+    efforts, resim_diff = _aging_torque_run(live, tmp_path, 'age', 0.005)
     # Command logged at 2 ms, timeout 5 ms: the step from 8 ms (age 6 ms) gets 0.
     assert efforts == [0.3] * 8 + [0.0] * 5, efforts
-    r = cli_ok('resim', only_file(tmp_path, 'age'), '--output', tmp_path / 'r.mcap', '--quiet')
-    assert _resim_rows(r.stdout)[2] == 0.0, r.stdout
+    assert resim_diff == 0.0
 
 
 @pytest.mark.timeout(150)
 def test_a_run_time_setting_change_is_recorded_and_resim_applies_it(live, tmp_path):
     from helpers import NODE, param_msg
     from rcl_interfaces.srv import SetParameters
-    proc = NodeProcess(node_argv(tmp_path, 'set', 'clock_mode:=lockstep',
-                                 'command_timeout:=0.0'), tmp_path / 'node.log')
-    try:
-        states = live.states()
-        pub = live.publisher(Float64, 'torque_command')
-        jpub = live.publisher(JointState, 'joint_commands')
-        for k in range(13):
-            if k < 3:
-                pub.publish(Float64(data=0.3))
-            else:
-                if k == 4:     # from now on a command older than 5 ms times out
-                    res = live.call(SetParameters, f'{NODE}/set_parameters',
-                                    SetParameters.Request(
-                                        parameters=[param_msg('command_timeout', 0.005)]))
-                    assert res.results[0].successful, res.results[0].reason
-                jpub.publish(JointState(name=['other_joint'], effort=[0.0]))
-            assert live.spin_until(lambda: len(states) > k, 10.0), (k, log_text(proc))
-        assert proc.stop(signal.SIGINT, timeout=30.0) == 0, log_text(proc)
-    finally:
-        proc.stop(signal.SIGKILL)
-    efforts = [m.effort[0] for _t, m in states]
+
+    def set_timeout(k):
+        if k == 4:     # from now on a command older than 5 ms times out
+            res = live.call(SetParameters, f'{NODE}/set_parameters', SetParameters.Request(
+                parameters=[param_msg('command_timeout', 0.005)]))
+            assert res.results[0].successful, res.results[0].reason
+    efforts, resim_diff = _aging_torque_run(live, tmp_path, 'set', 0.0, set_timeout)
     # The same ages as with the timeout set from the start: 0 N m from the step at 8 ms.
     assert efforts == [0.3] * 8 + [0.0] * 5, efforts
     # resim knows the timeout only from the recorded change (it starts with 0: none).
-    r = cli_ok('resim', only_file(tmp_path, 'set'), '--output', tmp_path / 'r.mcap', '--quiet')
-    assert _resim_rows(r.stdout)[2] == 0.0, r.stdout
+    assert resim_diff == 0.0
