@@ -48,13 +48,13 @@ def track_torques(params, n, dt=1e-3, amplitude=0.05, freq=0.5, bandwidth=20.0):
     return out
 
 
-def model_hash(params, torques):
-    """SHA-256 of model.run in 1 s blocks and of a tick-by-tick run."""
+def model_hash(params, torques, keys=None):
+    """SHA-256 of model.run in 1 s blocks and of a tick-by-tick run (``keys``: these only)."""
     h = hashlib.sha256()
     m = LeadScrewModel(params, dt=1e-3)
     for i in range(0, len(torques), 1000):
         res = m.run(torques[i:i + 1000])
-        for key in sorted(res):
+        for key in sorted(res if keys is None else keys):
             h.update(key.encode())
             h.update(np.ascontiguousarray(res[key]).tobytes())
     m = LeadScrewModel(params, dt=1e-3)
@@ -65,8 +65,8 @@ def model_hash(params, torques):
     return h.hexdigest()
 
 
-def mcap_hash(path):
-    """SHA-256 of every message of an MCAP file (topic, times, sequence, payload)."""
+def mcap_hash(path, skip=()):
+    """SHA-256 of every message of an MCAP file (topic, times, sequence, payload) not in skip."""
     h = hashlib.sha256()
     topics = {}
     count = 0
@@ -74,7 +74,7 @@ def mcap_hash(path):
         for rec in StreamReader(f, skip_magic=False).records:
             if isinstance(rec, Channel):
                 topics[rec.id] = rec.topic
-            elif isinstance(rec, Message):
+            elif isinstance(rec, Message) and topics[rec.channel_id] not in skip:
                 h.update(topics[rec.channel_id].encode())
                 h.update(rec.log_time.to_bytes(8, 'little'))
                 h.update(rec.publish_time.to_bytes(8, 'little'))
@@ -89,7 +89,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--seconds', type=float, default=10.0)
     ap.add_argument('--out', help='keep the MCAP files here (default: a temporary directory)')
+    ap.add_argument('--model-keys', help='hash only these comma-separated columns of '
+                    'model.run (to compare with a version that has fewer)')
+    ap.add_argument('--skip-topics', default='', help='comma-separated topics left out of '
+                    'the MCAP hashes (to compare with a version without them)')
     args = ap.parse_args()
+    keys = args.model_keys.split(',') if args.model_keys else None
+    skip = set(filter(None, args.skip_topics.split(',')))
     n = int(round(args.seconds / 1e-3))
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.out or tmp)
@@ -101,7 +107,7 @@ def main():
             drives = dict(hold=np.zeros(n), track=track,
                           sine=0.5 * p.max_torque * np.sin(2 * math.pi * t))
             for drive, tq in drives.items():
-                print(f'{name:<14} {drive:<6} model    {model_hash(p, tq)}', flush=True)
+                print(f'{name:<14} {drive:<6} model    {model_hash(p, tq, keys)}', flush=True)
             csv = out / f'{name}_track.csv'
             csv.write_text(''.join(f'{k * 1e-3!r},{float(v)!r}\n' for k, v in enumerate(track)))
             sim_args = dict(hold=['--torque', '0'], track=['--torque-csv', str(csv)],
@@ -110,10 +116,10 @@ def main():
                 f = out / f'{name}_{drive}.mcap'
                 rc = cli_main(['simulate', '--preset', name, '--duration', str(args.seconds),
                                '-q', '-o', str(f)] + extra)
-                print(f'{name:<14} {drive:<6} simulate rc={rc} {mcap_hash(f)}', flush=True)
+                print(f'{name:<14} {drive:<6} simulate rc={rc} {mcap_hash(f, skip)}', flush=True)
                 r = out / f'{name}_{drive}.resim.mcap'
                 rc = cli_main(['resim', str(f), '-q', '-o', str(r)])
-                print(f'{name:<14} {drive:<6} resim    rc={rc} {mcap_hash(r)}', flush=True)
+                print(f'{name:<14} {drive:<6} resim    rc={rc} {mcap_hash(r, skip)}', flush=True)
 
 
 if __name__ == '__main__':

@@ -6,6 +6,7 @@ import sys
 import time
 
 from ..core import yamlio
+from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, physics_subset, read_parameter_file
 
@@ -54,13 +55,14 @@ def parse_sets(items):
         if not sep or not name:
             raise CliError(f'--set {item!r}: expected name=value')
         value = parse_scalar(text)
-        if name in names:
-            phys[name] = value
+        if field_name(name) in names:
+            phys[field_name(name)] = value
         elif name == 'joint_prefix':
             run[name] = '' if value is None else str(text)
         else:
             raise CliError(f"--set: unknown parameter '{name}' (physics parameters: "
-                           f"{', '.join(sorted(names))}; or joint_prefix)")
+                           f"{', '.join(sorted(ScrewParams.parameter_names()))}; or "
+                           'joint_prefix)')
     return phys, run
 
 

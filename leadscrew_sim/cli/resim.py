@@ -12,7 +12,8 @@ from pathlib import Path
 import struct
 
 from .args import CliError, NS, parse_sets, Progress
-from ..core.commands import CommandHold, JOINT_COMMAND_MODES, NutMap, REJECTED
+from ..core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
+from ..core.delivery import StateDelivery
 from ..core.params import ParameterError, ScrewParams
 from ..io import cdr as C, messages as M, topics as T
 from ..io.mcap_reader import Recording
@@ -138,12 +139,13 @@ class Resim:
         from ..core.model import LeadScrewModel
         model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
         hold = CommandHold(self.prefix, self.timeout if self.clock_mode != 'realtime' else 0.0,
-                           NutMap.of_model(model), self.joint_command_mode)
+                           NutMap.of_model(model), self.joint_command_mode, model.params)
+        line = self.line = StateDelivery(model.params)
         events, ne, ie = self.events, len(self.events), 0
         dt_ns, t0, dec = self.dt_ns, self.t0, self.decimation
         new_states = {}
         outs = [] if keep else None
-        enc = M.StateEncoder(self.prefix)
+        enc = M.StateEncoder(self.prefix, self.params.anti_backlash)
         self.rejected = 0
         for k in range(self.n_steps):
             t_k = t0 + k * dt_ns
@@ -152,7 +154,7 @@ class Resim:
                 ie += 1
                 if writer is not None and kind in writer.ids:
                     writer.write(writer.ids[kind], data, log_time)
-                self._apply(kind, data, t_k, hold, model)
+                self._apply(kind, data, t_k, hold, model, line)
             command = hold.changed_command(t_k)
             if command is not None:
                 model.command(*command)
@@ -160,26 +162,29 @@ class Resim:
                 model.advance_held(hold.force)
             except FloatingPointError as exc:
                 raise CliError(f'simulation fault at step {k}: {exc}') from None
-            if (k + 1) % dec == 0 or keep:
-                o = model.output()
-                if (k + 1) % dec == 0:
-                    new_states[k + 1] = _states(o, t_k + dt_ns, writer, enc)
-                if keep:
-                    outs.append(o)
+            if (k + 1) % dec == 0:
+                line.sample(k + 1, t_k + dt_ns, model.joint_values())
+            _states(line.due(k + 1), model.truth_values() if (k + 1) % dec == 0 else None,
+                    t_k + dt_ns, writer, enc, new_states, self.dt_ns, t0)
+            if keep:
+                outs.append(model.output())
             if progress is not None and not k & 1023:
                 progress.update(k)
         if progress is not None:
             progress.done()
         return new_states, outs, model
 
-    def _apply(self, kind, data, t_k, hold, model):
+    def _apply(self, kind, data, t_k, hold, model, line):
         """Apply one event at step time ``t_k`` [ns]; count the rejected commands."""
         if kind == 'torque_command':
-            self.rejected += hold.torque_command(C.decode_float64(data), t_k) is not None
+            self.rejected += hold.torque_command(C.decode_float64(data), t_k) not in (
+                None, DROPPED)
         elif kind == 'velocity_command':
-            self.rejected += hold.velocity_command(C.decode_float64(data), t_k) is not None
+            self.rejected += hold.velocity_command(C.decode_float64(data), t_k) not in (
+                None, DROPPED)
         elif kind == 'position_command':
-            self.rejected += hold.position_command(C.decode_float64(data), t_k) is not None
+            self.rejected += hold.position_command(C.decode_float64(data), t_k) not in (
+                None, DROPPED)
         elif kind == 'joint_commands':
             _s, names, pos, vel, eff = C.decode_joint_state(data)
             self.rejected += hold.joint_commands(names, pos, vel, eff, t_k)[0] == REJECTED
@@ -193,6 +198,8 @@ class Resim:
             except ParameterError as exc:
                 raise CliError(f'{self.rec.path}: recorded {exc}') from None
             model.set_params(params)
+            hold.set_faults(params)
+            line.set_faults(params)
             if 'command_timeout' in data and self.clock_mode != 'realtime':
                 hold.timeout = run_setting(data, 'command_timeout', hold.timeout)
             if 'joint_command_mode' in data:
@@ -201,6 +208,7 @@ class Resim:
         elif kind == RESET_RECORD:
             model.reset()
             hold.reset()
+            line.reset()
             hold.nut_map = NutMap.of_model(model)
         elif kind == CLEAR_FAULT_RECORD:
             model.clear_fault()
@@ -222,14 +230,14 @@ class Resim:
             if new is None:
                 continue
             js, x, wr = new
-            if 'joint_states' in rec:
+            if 'joint_states' in rec and js is not None:
                 _s, _n, pos, vel, eff = C.decode_joint_state(rec['joint_states'])
                 old = list(pos[:2]) + list(vel[:2]) + list(eff[:2])
                 for i, (field, val) in enumerate(zip(fields[:6], old)):
                     _acc(acc[field], val, js[i])
-            if 'nut_position' in rec:
+            if 'nut_position' in rec and x is not None:
                 _acc(acc[fields[6]], C.decode_float64(rec['nut_position']), x)
-            if 'thread_force' in rec:
+            if 'thread_force' in rec and wr is not None:
                 _s, f, t = C.decode_wrench_stamped(rec['thread_force'])
                 _acc(acc[fields[7]], f[0], wr[0])
                 _acc(acc[fields[8]], t[0], wr[1])
@@ -245,15 +253,31 @@ class Resim:
         return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
 
 
-def _states(o, stamp, writer, enc):
-    """Return the state values of StepOutput ``o``; write them at ``stamp`` [ns] if asked."""
-    values = M.StateEncoder.values(o)
-    if writer is not None:
-        for topic, data in enc.tick(stamp, values):
-            writer.write(writer.ids[topic], data, stamp)
-        writer.write_tf(stamp, values[0], values[1])
-    angle, x, w_screw, v_nut, tq_motor, f_ax, tq_thread = values
-    return (angle, x, w_screw, v_nut, tq_motor, f_ax), x, (f_ax, tq_thread)
+def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0):
+    """
+    Keep (and write, if asked) the states of one tick, as the node publishes them.
+
+    ``delivered``: the [(stamp, sensor values)] due at ``now`` [ns]; ``truth``: the
+    truth values of a sampled tick (None otherwise). ``new_states`` gets, per
+    step index of ``now`` (the log time, as the recorded states are indexed),
+    [joint_states values, nut position, thread force values], None where the
+    tick published none.
+    """
+    values = None
+    for stamp, values in delivered:
+        if writer is not None:
+            for topic, data in enc.sensor(stamp, values):
+                writer.write(writer.ids[topic], data, now)
+        new_states.setdefault((now - t0) // dt_ns, [None, None, None])[:2] = \
+            values, values[1]
+    if truth is not None:
+        if writer is not None:
+            for topic, data in enc.truth(now, truth):
+                writer.write(writer.ids[topic], data, now)
+        new_states.setdefault((now - t0) // dt_ns, [None, None, None])[2] = \
+            (truth[-1], truth[9])
+    if values is not None and writer is not None:
+        writer.write_tf(stamp, values[0], values[1], now)
 
 
 _BITS = struct.Struct('<d').pack

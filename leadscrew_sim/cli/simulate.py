@@ -16,18 +16,20 @@ import numpy as np
 
 from .args import CliError, DEFAULT_PRESET, load_params, NS, parse_sets, Progress
 from .sources import make_drive_source, make_force_source, make_torque_source
-from ..core.commands import CommandHold, NutMap
+from .schedule import read_schedule
+from ..core import layout as L
+from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
+from ..core.delivery import StateDelivery
+from ..core.fields import public_name
+from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
-from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter
+from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter, UPDATE_RECORD
 
 HELP = 'run the model offline and write an MCAP file'
 
 #: Ticks per block: the model runs a block in one compiled call (open-loop
 #: inputs) and the block's messages are encoded and recorded at once.
 BLOCK_TICKS = 1000
-
-#: The state columns of a block, named as in the result of ``model.run``.
-COLUMNS = M.TICK_VALUES
 
 
 def add_arguments(p):
@@ -60,6 +62,9 @@ def add_arguments(p):
     p.add_argument('--speed', type=float, default=0.01, help='move reference speed [m/s]')
     p.add_argument('--force', type=float, help='constant external axial force [N]')
     p.add_argument('--force-csv', help='CSV time,force [s, N], zero-order hold')
+    p.add_argument('--faults', metavar='FILE', help='fault schedule: CSV time,parameter,value '
+                   '[s, a parameter such as fault.jam, a YAML scalar]; each change acts from '
+                   'the first step at or after its time')
     p.add_argument('--clock', action='store_true', help='also record /clock every tick')
     p.add_argument('--output', '-o', help='output MCAP (default runs/sim_<preset>_<time>.mcap)')
     p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
@@ -84,6 +89,9 @@ def run(args):
     else:
         torque_fn, torque_desc = drive[0], drive[2]
     force_fn, force_desc = make_force_source(args)
+    schedule = read_schedule(args.faults, params, dt_ns) if args.faults else []
+    if schedule and schedule[0][0] == 0:   # changes at t = 0 are the run's parameters
+        params = ScrewParams.from_dict(schedule.pop(0)[1], base=params)
     model = LeadScrewModel(params, dt=dt_ns / NS)
     if drive is not None:
         torque_fn = DriveInput(drive[0], drive[1], model, prefix)
@@ -98,7 +106,7 @@ def run(args):
     try:
         w.write_description(0)
         stats = simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w,
-                              Progress(n_steps, 'simulate', args.quiet), args.clock)
+                              Progress(n_steps, 'simulate', args.quiet), args.clock, schedule)
     finally:
         size = w.close()
     wall = time.perf_counter() - t_wall
@@ -111,24 +119,37 @@ def run(args):
     return 0
 
 
-def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock=False):
+def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock=False,
+                  schedule=()):
     """
     Advance ``n_steps`` steps of ``dt_ns`` [ns], recording command and states per tick.
 
-    Blocks of :data:`BLOCK_TICKS` ticks: open-loop torque inputs (functions of
+    Blocks of :data:`BLOCK_TICKS` ticks, cut also where ``schedule`` ([(step,
+    {name: value})]) changes parameters: open-loop torque inputs (functions of
     time only) run through ``model.run`` in one compiled call, the closed-loop
     ``move`` profile tick by tick; both give the same bits as ``model.advance``
-    per tick. Returns the statistics x_min, x_max, x_end [m] and tq_max [N m].
+    per tick. The commands pass through the node's :class:`CommandHold` (lost
+    commands, command delay) and the sensor states through its
+    :class:`StateDelivery` (delay, lost states). Returns the statistics x_min,
+    x_max, x_end [m] and tq_max [N m].
     """
     dt = dt_ns / NS
     needs_state = getattr(torque_fn, 'needs_state', False)
+    hold = torque_fn.hold if isinstance(torque_fn, DriveInput) else CommandHold(
+        '', 0.0, NutMap.of_model(model), params=model.params)
+    line = StateDelivery(model.params)
     o = model.output()
     x, vm = o.nut_position, 0.0
     vm_scale = model.params.hand_sign * model.params.lead / (2.0 * math.pi)
     stats = dict(x_min=x, x_max=x, x_end=x, tq_max=0.0)
     force = 0.0
-    for k0 in range(0, n_steps, BLOCK_TICKS):
-        ks = range(k0, min(n_steps, k0 + BLOCK_TICKS))
+    cuts = sorted({k for k in range(0, n_steps, BLOCK_TICKS)}
+                  | {k for k, _c in schedule if 0 < k < n_steps})
+    changes_at = dict(schedule)
+    for k0, k1 in zip(cuts, cuts[1:] + [n_steps]):
+        if k0 in changes_at:
+            _apply_changes(model, hold, line, changes_at[k0], w, k0 * dt_ns)
+        ks = range(k0, k1)
         forces, changes = [], []
         for k in ks:
             f = force if force_fn is None else float(force_fn(k * dt))
@@ -139,20 +160,31 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         if isinstance(torque_fn, DriveInput):
             torques, cols = torque_fn.block(ks, dt_ns, forces)
         elif needs_state:
-            torques, cols = _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm,
+            torques, cols = _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm,
                                                vm_scale)
         else:
-            torques, cols = _open_loop_block(model, ks, dt, torque_fn, forces)
-        x = float(cols[1][-1])
+            torques, cols = _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces)
+        x = float(cols['nut_position'][-1])
         vm = vm_scale * model.output().motor_velocity
-        _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock)
-        stats['x_min'] = min(stats['x_min'], float(np.min(cols[1])))
-        stats['x_max'] = max(stats['x_max'], float(np.max(cols[1])))
-        stats['tq_max'] = max(stats['tq_max'], float(np.max(np.abs(cols[4]))))
+        _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line)
+        stats['x_min'] = min(stats['x_min'], float(np.min(cols['nut_position'])))
+        stats['x_max'] = max(stats['x_max'], float(np.max(cols['nut_position'])))
+        stats['tq_max'] = max(stats['tq_max'], float(np.max(np.abs(cols['motor_torque']))))
         stats['x_end'] = x
         progress.update(ks.stop)
     progress.done()
     return stats
+
+
+def _apply_changes(model, hold, line, changes, w, log_time_ns):
+    """Apply scheduled parameter changes before a step and record them as the node does."""
+    params = ScrewParams.from_dict(changes, base=model.params)
+    model.set_params(params)
+    hold.set_faults(params)
+    line.set_faults(params)
+    record = {public_name(k): str(getattr(params, k)) for k in changes}
+    record.update(log_time_ns=str(log_time_ns), messages_at_log_time='0')
+    w.rec.add_metadata(UPDATE_RECORD, record)
 
 
 def _check_finite(torques, ks, dt):
@@ -161,54 +193,78 @@ def _check_finite(torques, ks, dt):
         raise CliError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
 
 
-def _open_loop_block(model, ks, dt, torque_fn, forces):
-    """Run a block in one compiled call; return torques and the :data:`COLUMNS`."""
+def _through_hold(hold, torques, ks, dt_ns, previous):
+    """Return the torques the drive applies: the commands after loss and delay (as resim)."""
+    applied = []
+    for tq, k in zip(torques, ks):
+        hold.torque_command(tq, k * dt_ns)
+        command = hold.delayed(hold.command_at(k * dt_ns))
+        previous = previous if command is None else command[3]
+        applied.append(previous)
+    return applied
+
+
+def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
+    """Run a block in one compiled call; return the torques and the run's columns."""
+    dt = dt_ns / NS
     torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
     _check_finite(torques, ks, dt)
+    applied = torques
+    if hold.delay or hold.drop_rate:
+        applied = _through_hold(hold, torques, ks, dt_ns, model.state[L.S_CT] *
+                                model.params.hand_sign + 0.0)
     try:
-        r = model.run(torques, forces)
+        r = model.run(applied, forces)
     except FloatingPointError as exc:
         raise CliError(f'simulation fault: {exc}') from None
-    return torques, [r[n] for n in COLUMNS]
+    return torques, r
 
 
-def _closed_loop_block(model, ks, dt, torque_fn, forces, x, vm, vm_scale):
+def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scale):
     """Step tick by tick (the torque depends on the state); return torques and columns."""
+    dt = dt_ns / NS
     n = len(ks)
-    cols = [np.empty(n) for _ in range(7)]
+    names = M.SENSOR_COLUMNS[:4] + M.TRUTH_VALUES
+    cols = {name: np.empty(n) for name in names}
     torques = []
+    lossy = hold.delay or hold.drop_rate
+    applied = model.state[L.S_CT] * model.params.hand_sign + 0.0
     for i, k in enumerate(ks):
         tq = float(torque_fn(k, k * dt, x, vm))
         _check_finite([tq], [k], dt)
         torques.append(tq)
+        applied = _through_hold(hold, [tq], [k], dt_ns, applied)[0] if lossy else tq
         try:
-            model.advance(tq, None, forces[i])
+            model.advance(applied, None, forces[i])
         except FloatingPointError as exc:
             raise CliError(f'simulation fault: {exc}') from None
-        o = model.output()
-        x, vm = o.nut_position, vm_scale * o.motor_velocity
-        for col, v in zip(cols, (o.screw_angle, x, o.screw_velocity, o.nut_velocity,
-                                 o.motor_torque, o.axial_force, o.thread_torque)):
-            col[i] = v
+        for name, v in zip(names, model.joint_values()[:4] + model.truth_values()):
+            cols[name][i] = v
+        x, vm = cols['nut_position'][i], vm_scale * cols['motor_velocity'][i]
     return torques, cols
 
 
-def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
+def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
     """Encode and write the messages of one block in the node's per-tick order."""
-    enc, ids = w.enc, w.ids
     t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
-    t_state = t_cmd + dt_ns
-    states = enc.rows(t_state, cols)
     if isinstance(torques, tuple):            # a drive input: (topic, message rows)
-        rows, chans = [torques[1]], [ids[torques[0]]]
+        cmd = torques[1], w.ids[torques[0]]
     else:
-        rows = [C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)])]
-        chans = [ids['torque_command']]
+        cmd = C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]), \
+            w.ids['torque_command']
+    sensed = {name: cols[col] for name, col in zip(M.SENSOR_VALUES, M.SENSOR_COLUMNS)}
+    if line.delay or line.drop_rate or line.pending():   # the node's line, per tick
+        _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line)
+        return
+    enc, ids = w.enc, w.ids
+    t_state = t_cmd + dt_ns
+    states = enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
+    rows, chans = [cmd[0]], [cmd[1]]
     rows += [r for _topic, r in states]
     times = [t_cmd] + [t_state] * len(states)
     chans += [ids[topic] for topic, _r in states]
     if w.tf is not None:
-        rows.append(w.tf_rows(t_state, cols[0], cols[1]))
+        rows.append(w.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
         times.append(t_state)
         chans.append(ids['/tf'])
     if clock:
@@ -230,6 +286,29 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock):
         a = i + 1
 
 
+def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line):
+    """Write a block tick by tick, the sensor states through the node's StateDelivery."""
+    enc, ids = w.enc, w.ids
+    changed = set(changes)
+    sensor_names, truth_names = M.SENSOR_VALUES, M.TRUTH_VALUES
+    for i, k in enumerate(ks):
+        t_cmd, t_state = k * dt_ns, (k + 1) * dt_ns
+        w.write(cmd[1], cmd[0][i].tobytes(), t_cmd)
+        if k in changed:
+            w.write(ids['external_force'], C.encode_float64(forces[i]), t_cmd)
+        line.sample(k + 1, t_state, tuple(float(sensed[n][i]) for n in sensor_names))
+        values = None
+        for stamp, values in line.due(k + 1):
+            for topic, data in enc.sensor(stamp, values):
+                w.write(ids[topic], data, t_state)
+        for topic, data in enc.truth(t_state, tuple(float(cols[n][i]) for n in truth_names)):
+            w.write(ids[topic], data, t_state)
+        if values is not None:
+            w.write_tf(stamp, values[0], values[1], t_state)
+        if clock:
+            w.write(ids['/clock'], enc.clock(t_state, ()), t_state)
+
+
 class DriveInput:
     """
     A velocity or position input through the drive, run block-wise in one compiled call.
@@ -242,16 +321,18 @@ class DriveInput:
     def __init__(self, fn, topic, model, prefix):
         """Keep the source ``fn(t) -> (x, v)``, the command topic and the model."""
         self.fn, self.topic, self.model = fn, topic, model
-        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model))
+        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model), params=model.params)
         self.joint = prefix + 'nut_joint'
         self.template = C.joint_state_template([self.joint], 1, 1, 0)
+        self.previous = INITIAL_COMMAND     # the command the drive holds (delayed commands)
 
     def block(self, ks, dt_ns, forces):
-        """Run ticks ``ks``; return ((topic, message rows), the :data:`COLUMNS`)."""
+        """Run ticks ``ks``; return ((topic, message rows), the run's columns)."""
         n = len(ks)
         commands = np.empty((n, 4))
         xs, vs = np.empty(n), np.empty(n)
         hold = self.hold
+        previous = self.previous
         for i, k in enumerate(ks):
             t_ns = k * dt_ns
             x, v = self.fn(t_ns / NS)
@@ -262,9 +343,12 @@ class DriveInput:
                 reason = hold.position_command(x, t_ns)
             else:
                 reason = hold.joint_commands([self.joint], [x], [v], [], t_ns)[1]
-            if reason:
+            if reason and reason is not DROPPED:
                 raise CliError(f'drive input at t={t_ns / NS:.6f} s: {reason}')
-            commands[i] = hold.command_at(t_ns)
+            command = hold.delayed(hold.command_at(t_ns))
+            previous = previous if command is None else command
+            commands[i] = previous
+        self.previous = previous
         try:
             r = self.model.run(None, forces, commands=commands)
         except FloatingPointError as exc:
@@ -274,4 +358,4 @@ class DriveInput:
             rows = self.template.rows(t_cmd, [xs, vs])
         else:
             rows = C.F64_TEMPLATE.rows(None, [vs if self.topic == 'velocity_command' else xs])
-        return (self.topic, rows), [r[name] for name in COLUMNS]
+        return (self.topic, rows), r

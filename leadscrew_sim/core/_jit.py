@@ -34,7 +34,8 @@ DISPATCHERS = []
 
 #: The modules whose source the compiled code depends on: their own functions, and the
 #: constants of layout and drive that numba freezes into the code of every user.
-KERNEL_SOURCES = ('_jit.py', 'layout.py', 'drive.py', 'friction.py', 'lcp.py', 'kernel.py')
+KERNEL_SOURCES = ('_jit.py', 'layout.py', 'drive.py', 'friction.py', 'lcp.py', 'sensors.py',
+                  'kernel.py')
 
 #: File beside numba's cache entries holding the digest of KERNEL_SOURCES they came from.
 DIGEST_FILE = 'leadscrew_sim_kernel.sha256'

@@ -27,11 +27,17 @@ The command rules of the axis, shared by the node and ``resim`` so that they can
   target holds.
 - The log-time rule (:data:`COMMAND_LOG_TIME`): a command logged at t acts on
   the step from t to t + dt, whose states carry the stamp t + dt.
+- Injected communication faults: a share ``drop_rate`` of the drive commands
+  is lost on arrival (seeded: the n-th command received since start is lost
+  when :func:`.sensors.uniform` of n is below the rate; external_force is a
+  physical input and never lost), and every drive command reaches the drive
+  ``delay`` steps after the step it arrived for.
 
 Times are integer nanoseconds in whatever time base the caller uses (wall
 clock in the node's realtime mode, sim time otherwise). Angles and torques
 are in the screw joint's sense (theta).
 """
+import collections
 import math
 
 from .drive import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
@@ -50,8 +56,12 @@ NAN = float('nan')
 JOINT_COMMAND_MODES = {'auto': None, 'position': MODE_POSITION, 'velocity': MODE_VELOCITY,
                        'effort': MODE_TORQUE}
 
-#: Results of :meth:`CommandHold.joint_commands`.
-ACCEPTED, IGNORED, REJECTED = 'accepted', 'ignored', 'rejected'
+#: Results of :meth:`CommandHold.joint_commands`; DROPPED is also the reason the other
+#: command methods return for a command lost to ``drop_rate``.
+ACCEPTED, IGNORED, REJECTED, DROPPED = 'accepted', 'ignored', 'rejected', 'dropped'
+
+#: The drive command a model holds after reset: torque mode, 0 N m.
+INITIAL_COMMAND = (MODE_TORQUE, NAN, NAN, 0.0)
 
 
 class NutMap:
@@ -120,16 +130,52 @@ class CommandHold:
     joint_command_mode : str
         A key of :data:`JOINT_COMMAND_MODES`: ``'auto'`` (the mode rule) or the
         fixed mode of ``joint_commands``.
+    params : ScrewParams, optional
+        Its ``command_delay`` [ticks], ``fault_command_drop_rate`` and
+        ``sensor_seed`` (default: none, no loss); see :meth:`set_faults`.
 
     """
 
-    def __init__(self, joint_prefix='', timeout=0.0, nut_map=None, joint_command_mode='auto'):
+    def __init__(self, joint_prefix='', timeout=0.0, nut_map=None, joint_command_mode='auto',
+                 params=None):
         """Start with no command: torque mode, zero torque and force."""
         self.set_joint_prefix(joint_prefix)
         self.timeout = float(timeout)
         self.nut_map = nut_map if nut_map is not None else NutMap()
         self.joint_mode = JOINT_COMMAND_MODES[joint_command_mode]
+        self.received = 0           # drive commands received since start (the drop counter)
+        self.dropped = 0            # of them lost to drop_rate
+        self.delay, self.drop_rate, self.seed = 0, 0.0, 0
+        if params is not None:
+            self.set_faults(params)
         self.reset()
+
+    def set_faults(self, params):
+        """
+        Take the delay and the loss of commands from a parameter set.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            ``command_delay`` [ticks], ``fault_command_drop_rate`` (0..1) and
+            ``sensor_seed``.
+
+        """
+        self.delay = int(params.command_delay)
+        self.drop_rate = float(params.fault_command_drop_rate)
+        self.seed = int(params.sensor_seed)
+
+    def _lost(self):
+        """Count a received drive command; return True if drop_rate loses it."""
+        n = self.received
+        self.received += 1
+        if self.drop_rate <= 0.0:
+            return False
+        from .sensors import STREAM_COMMAND_DROP, uniform
+        if uniform(self.seed, STREAM_COMMAND_DROP, n) < self.drop_rate:
+            self.dropped += 1
+            return True
+        return False
 
     def set_joint_prefix(self, joint_prefix):
         """
@@ -156,6 +202,7 @@ class CommandHold:
         self._tick = None           # (time_ns, position, velocity, effort) merged this tick
         self._version = getattr(self, '_version', 0) + 1     # counts command changes
         self._delivered = None      # (version, stale) of the last changed_command()
+        self._line = collections.deque()    # commands of the last steps, for the delay
 
     @property
     def torque(self):
@@ -184,6 +231,8 @@ class CommandHold:
             Time of the command [ns], the base of its age.
 
         """
+        if self._lost():
+            return DROPPED
         if not math.isfinite(value):
             return f'non-finite torque_command {value!r}'
         self._set(MODE_TORQUE, NAN, NAN, value, time_ns)
@@ -201,6 +250,8 @@ class CommandHold:
             Time of the command [ns].
 
         """
+        if self._lost():
+            return DROPPED
         if not math.isfinite(value):
             return f'non-finite velocity_command {value!r}'
         self._set(MODE_VELOCITY, NAN, self.nut_map.velocity(value), 0.0, time_ns)
@@ -218,6 +269,8 @@ class CommandHold:
             Time of the command [ns].
 
         """
+        if self._lost():
+            return DROPPED
         if not math.isfinite(value):
             return f'non-finite position_command {value!r}'
         self._set(MODE_POSITION, self.nut_map.position(value), NAN, 0.0, time_ns)
@@ -228,7 +281,8 @@ class CommandHold:
         Apply a ``joint_commands`` message given its names and arrays.
 
         Returns ``(result, reason)``: :data:`ACCEPTED`, :data:`IGNORED` (the
-        message names neither joint) or :data:`REJECTED` with the reason.
+        message names neither joint), :data:`DROPPED` (lost to ``drop_rate``)
+        or :data:`REJECTED` with the reason.
 
         Parameters
         ----------
@@ -241,6 +295,8 @@ class CommandHold:
             Time of the command [ns].
 
         """
+        if self._lost():
+            return DROPPED, DROPPED
         names = list(names)
         for what, values in (('positions', positions), ('velocities', velocities),
                              ('efforts', efforts)):
@@ -348,9 +404,31 @@ class CommandHold:
         command = self.command_at(now_ns)
         key = (self._version, self.stale)
         if key == self._delivered:
-            return None
+            command = None
         self._delivered = key
-        return command
+        return self.delayed(command)
+
+    def delayed(self, command):
+        """
+        Return the command of ``delay`` steps ago: call once per step with this step's.
+
+        Parameters
+        ----------
+        command : tuple or None
+            This step's drive command (None: no change), or any per-step value.
+
+        """
+        if self.delay <= 0:
+            if self._line:
+                self._line.clear()
+            return command
+        line = self._line
+        line.append(command)
+        out = None
+        while len(line) > self.delay:   # more than one after a shorter delay: the newest
+            older = line.popleft()
+            out = older if older is not None else out
+        return out
 
     def applied_torque(self, now_ns):
         """

@@ -12,11 +12,44 @@ import inspect
 import math
 
 
+#: Field name prefixes that stand for a parameter namespace: the field ``fault_jam`` is
+#: the parameter ``fault.jam`` in ROS, in parameter files and in messages.
+NAMESPACES = ('fault',)
+
+
+def public_name(name):
+    """Return the parameter name of a field name (``fault_jam`` -> ``fault.jam``)."""
+    for ns in NAMESPACES:
+        if name.startswith(ns + '_'):
+            return f'{ns}.{name[len(ns) + 1:]}'
+    return name
+
+
+def field_name(name):
+    """Return the field name of a parameter name (``fault.jam`` -> ``fault_jam``)."""
+    for ns in NAMESPACES:
+        if name.startswith(ns + '.'):
+            return f'{ns}_{name[len(ns) + 1:]}'
+    return name
+
+
+def flatten(values):
+    """Return a mapping by field name: ``{'fault': {'jam': v}}`` or ``fault.jam`` -> fault_jam."""
+    out = {}
+    for k, v in values.items():
+        if k in NAMESPACES and isinstance(v, dict):
+            out.update({f'{k}_{sub}': x for sub, x in v.items()})
+        else:
+            out[field_name(k)] = v
+    return out
+
+
 class ParameterError(ValueError):
     """An invalid parameter value or an inconsistent parameter set."""
 
     def __init__(self, name, message):
         """Keep the parameter name; the message reads ``parameter 'name': message``."""
+        name = public_name(name)
         super().__init__(f"parameter '{name}': {message}")
         self.name = name
 
@@ -176,11 +209,18 @@ class Schema:
 
     @classmethod
     def from_dict(cls, values, base=None):
-        """Build from a mapping (coerced per field) over ``base``; unknown keys raise."""
+        """
+        Build from a mapping (coerced per field) over ``base``; unknown keys raise.
+
+        Keys are field or parameter names (``fault_jam`` or ``fault.jam``), and
+        a namespace may be a nested mapping (``{'fault': {'jam': True}}``).
+        """
         known = {f.name: f for f in dataclasses.fields(cls)}
+        values = flatten(values)
         for k in values:
             if k not in known:
-                raise ParameterError(k, f'unknown parameter (known: {", ".join(sorted(known))})')
+                names = ', '.join(sorted(public_name(n) for n in known))
+                raise ParameterError(k, f'unknown parameter (known: {names})')
         coerced = {k: coerce(known[k], v) for k, v in values.items()}
         base = base if base is not None else cls()
         return dataclasses.replace(base, **coerced)
@@ -189,6 +229,7 @@ class Schema:
     def from_text(cls, values, base=None):
         """Build from ``{name: str(value)}`` (a metadata record); other keys are ignored."""
         known = {f.name: f for f in dataclasses.fields(cls)}
+        values = {field_name(k): v for k, v in values.items()}
         return cls.from_dict({k: from_text(known[k], v) for k, v in values.items()
                               if k in known}, base=base)
 
@@ -201,3 +242,8 @@ class Schema:
     def names(cls):
         """Return the field names in declaration order."""
         return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def parameter_names(cls):
+        """Return the parameter names (``fault.jam`` for ``fault_jam``) in declaration order."""
+        return tuple(public_name(f.name) for f in dataclasses.fields(cls))

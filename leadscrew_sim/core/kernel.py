@@ -30,27 +30,30 @@ import numpy as np
 
 from ._jit import kernel_jit, refresh_cache
 from .drive import (
-    FAULT_FOLLOWING_ERROR, FAULT_NONE, FAULT_TORQUE_LIMIT, MODE_POSITION, MODE_QUICKSTOP,
-    MODE_TORQUE, update_period, velocity_loop,
+    FAULT_FOLLOWING_ERROR, FAULT_INJECTED, FAULT_NONE, FAULT_TORQUE_LIMIT, MODE_POSITION,
+    MODE_QUICKSTOP, MODE_TORQUE, update_period, velocity_loop,
 )
 from .friction import _thread_limit, _thread_limits, friction_constants
 from .lcp import _box1, _box2, _friction_lcp, _solve2, _solve_free
+from .sensors import sample
 from .layout import (
-    IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL, MAXE, N_CMD, NO,
-    O_CONTA, O_CONTB, O_DFAULT, O_DFERR, O_DMODE, O_DTCMD, O_DWREF, O_FAX, O_FFA, O_FFB,
-    O_FG, O_HOME, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB, O_STICKA, O_STICKB, O_SWMAX, O_SWMIN,
-    O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
+    IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL,
+    MAXE, NO, N_CMD,
+    O_CONTA, O_CONTB, O_DFAULT, O_DFERR, O_DMODE, O_DTCMD, O_DWREF, O_FAX, O_FFA, O_FFB, O_FG,
+    O_HOME, O_JQ, O_JV, O_JW, O_JX, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB, O_STICKA, O_STICKB,
+    O_SWMAX, O_SWMIN, O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
     P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_DFEL, P_DKP, P_DKV, P_DQ0, P_DQSD,
-    P_DRATE, P_DSCALE, P_DTI, P_DTLT, P_DVMAX, P_DX0, P_FEXT, P_FP, P_FX0, P_GS, P_HOME,
-    P_HYST, P_JM, P_JS, P_K, P_KC, P_KES, P_KP, P_LMAX, P_LMIN, P_MA, P_MB, P_MUC, P_RC,
-    P_RCOL, P_RIGID, P_RT, P_SL, P_TAU, P_TMAX, P_TS0, P_XMAX, P_XMIN,
+    P_DRATE, P_DSCALE, P_DTI, P_DTLT, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT, P_FINJ, P_FP,
+    P_FX0, P_GS, P_HOME, P_HYST, P_JAM, P_JAMX, P_JM, P_JS, P_K, P_KC, P_KES, P_KP, P_LMAX,
+    P_LMIN, P_MA, P_MB, P_MUC, P_RC, P_RCOL, P_RIGID, P_RT, P_SFIT, P_SFRZ, P_SIDEAL, P_SL,
+    P_TAU, P_TMAX, P_TS0, P_TSCALE, P_VFT, P_XMAX, P_XMIN,
     REC_ROW, REC_STATE,
     S_CMODE, S_CQ, S_CT, S_CW, S_DFAULT, S_DFERR, S_DINT, S_DMODE, S_DPHASE, S_DQ, S_DQREF,
-    S_DQS, S_DTLIM, S_DTOUT, S_DWQS, S_DWREF, S_EDAMP, S_EFRIC, S_FAPREV, S_HOME, S_MODE0,
-    S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_WEXT, S_WIN, S_WM,
-    S_XA, S_XB,
-    WK_A, WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC,
-    WK_V0, WK_W,
+    S_DQS, S_DTLIM, S_DTOUT, S_DWQS, S_DWREF, S_EDAMP, S_EFRIC, S_EQ, S_EW, S_FAPREV, S_HOME,
+    S_JAM, S_MODE0, S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_VS,
+    S_WEXT, S_WIN, S_WM, S_XA, S_XB, S_XS,
+    WK_A, WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC, WK_V0,
+    WK_W,
 )
 
 
@@ -98,7 +101,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     its feedback at the one marked place, runs the position and velocity loops
     and holds the new torque command t_sat until its next update. A torque mode
     step takes the torque path: t_sat = clip(command), clamped to 0 by a latched
-    fault or toward a tripped limit switch, the same for every substep.
+    fault or toward a tripped limit switch, the same for every substep. In
+    every mode the sensors (sensors.sample) are sampled at the end of each
+    drive period, when d_phase wraps to 0: the drive's feedback is that sample.
+    The motor delivers t_scale times the torque command (a weakened motor), an
+    injected fault latches while its flag is set, and a jam is a one-sided end
+    stop at jam_x on the side nut A was when it engaged.
 
     Parameters are unpacked once per call and the state lives in local scalars
     within a step. One or two active friction elements are solved by the
@@ -144,6 +152,11 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         from the linear scale;  q_ref0, x_ref0, irt: its reference angle [rad] and nut
         position [m], 1 / rt [rad/m];  l_min, l_max, x_home, hyst: switch positions and
         hysteresis [m]
+      sensors: beta: velocity filter gain per sample;  t_scale: motor torque
+        scale;  jam_on, jam_x, jam_side: the jam, its position [m] and side (1
+        blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N] and penetration
+        [m];  enc_live: the encoder is ideal and not frozen;  eq, ew: encoder
+        angle [rad] and rate [rad/s] at the end of the step
       c_mode, c_q, c_w, c_t: the held command (mode, q_ref [rad], w_cmd [rad/s],
         t_cmd [N m]);  d_mode: active mode;  d_qref: active target [rad];  d_int:
         integral I [rad];  d_tout: held drive torque command [N m];  d_phase: substeps
@@ -271,6 +284,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     l_max = P[P_LMAX]
     x_home = P[P_HOME]
     hyst = P[P_HYST]
+    beta = 1.0 if P[P_VFT] <= 0.0 else 1.0 - math.exp(-td / P[P_VFT])
+    t_scale = P[P_TSCALE]
+    jam_on = P[P_JAM] > 0.5
+    jam_x = P[P_JAMX]
     n_steps = torques.shape[0] if ncmd == 0 else min(torques.shape[0], ncmd)
     for i in range(n_steps):
         fext = P[P_FEXT] + forces[i]
@@ -296,6 +313,13 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         d_wqs = S[S_DWQS]
         d_ferr = S[S_DFERR]
         d_wref = S[S_DWREF]
+        if P[P_FINJ] > 0.5 and d_fault == FAULT_NONE:   # an injected fault latches
+            d_fault = FAULT_INJECTED
+        jam_side = 0.0
+        if jam_on:   # the jam blocks the side of jam_x the nut was on when it engaged
+            jam_side = S[S_JAM]
+            if jam_side == 0.0:
+                jam_side = 1.0 if S[S_XA] <= jam_x else -1.0
         # the command takes effect: a quick stop once, any other mode at once
         if c_mode == MODE_QUICKSTOP:
             if d_qs == 0:
@@ -360,11 +384,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         for _ in range(nsub):
             if drive_on:
                 if d_phase == 0:
-                    # ---- drive feedback: what the drive measures. Ideal (true) values now;
-                    # ---- a sensor model replaces exactly these two lines.
-                    q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
-                    w_fb = wm
-                    # ---- end of the drive feedback
+                    # drive feedback: the sensors' sample at the end of the last period
+                    q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
+                    w_fb = S[S_EW]
                     if d_fault != FAULT_NONE:
                         d_tout = 0.0
                         d_int = 0.0
@@ -406,10 +428,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                         d_wref = w_ref
                         d_tout = t_drv
                     t_sat = d_tout
-                d_phase += 1
-                if d_phase >= d_m:
-                    d_phase = 0
-            te_new = te + alpha * (t_sat - te)
+            te_new = te + alpha * (t_scale * t_sat - te)
             f_m = 0.0
             f_s = 0.0
             f_a = 0.0
@@ -440,6 +459,18 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             if pen_stop_hi > 0.0:
                 f_stop_hi = max(0.0, kes * pen_stop_hi + ces * va)
                 f_a -= f_stop_hi
+            f_jam = 0.0
+            pen_jam = 0.0
+            if jam_side > 0.0:
+                pen_jam = xa - jam_x
+                if pen_jam > 0.0:
+                    f_jam = max(0.0, kes * pen_jam + ces * va)
+                    f_a -= f_jam
+            elif jam_side < 0.0:
+                pen_jam = jam_x - xa
+                if pen_jam > 0.0:
+                    f_jam = max(0.0, kes * pen_jam - ces * va)
+                    f_a += f_jam
             # thread contact of nut A
             flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq,
                                                              half_b, k, c)
@@ -642,6 +673,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 damp_pow -= (f_stop_lo - kes * pen_stop_lo) * va_sum
             if pen_stop_hi > 0.0:
                 damp_pow += (f_stop_hi - kes * pen_stop_hi) * va_sum
+            if pen_jam > 0.0:
+                damp_pow += jam_side * (f_jam - kes * pen_jam) * va_sum
             if two_nuts:
                 gap_sum_b = vb_sum - rt * dq_sum
                 if pen_lo_b > 0.0:
@@ -665,6 +698,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             xb = xb_new
             te = te_new
             t += h
+            d_phase += 1
+            if d_phase >= d_m:   # the end of a drive period: sample the sensors
+                d_phase = 0
+                sample(P, S, qm, wm, xa, va, td, beta, False)
         win += 0.5 * h * sum_in
         wext += 0.5 * h * fext * sum_ext
         edamp += 0.5 * h * sum_damp
@@ -706,8 +743,6 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         S[S_MODE0 + 2] = mode_c
         S[S_MODE0 + 3] = mode_g
         S[S_NSEARCH] = nsearch
-        if not drive_on:
-            d_phase = (d_phase + nsub) % d_m
         # limit and home switches from the true nut position at the end of the step (with
         # hysteresis); they act on the next step
         if sw_min:
@@ -741,6 +776,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         S[S_SWMIN] = 1.0 if sw_min else 0.0
         S[S_SWMAX] = 1.0 if sw_max else 0.0
         S[S_HOME] = 1.0 if home else 0.0
+        S[S_JAM] = jam_side
         # outputs of the last substep
         out[O_NLA] = flo_a / cl
         out[O_NUA] = fup_a / cl
@@ -768,6 +804,21 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         out[O_DFERR] = d_ferr if d_mode == MODE_POSITION else 0.0
         out[O_DTCMD] = t_sat
         out[O_DWREF] = d_wref if drive_on else 0.0
+        # what the sensors report: an ideal live encoder the true screw angle and rate
+        enc_live = P[P_EIDEAL] > 0.5 and P[P_EFRZ] <= 0.5
+        eq = qm if enc_live else S[S_EQ]
+        ew = wm if enc_live else S[S_EW]
+        out[O_JQ] = q if enc_live else eq
+        out[O_JW] = dq if enc_live else ew
+        if P[P_SFIT] <= 0.5:   # no scale: the encoder through the lead
+            out[O_JX] = x_ref0 + (eq - q_ref0) * rt
+            out[O_JV] = ew * rt
+        elif P[P_SIDEAL] > 0.5 and P[P_SFRZ] <= 0.5:
+            out[O_JX] = xa
+            out[O_JV] = va
+        else:
+            out[O_JX] = S[S_XS]
+            out[O_JV] = S[S_VS]
         for j in range(REC_STATE):
             rec[i, j] = S[j]
         for j in range(NO):

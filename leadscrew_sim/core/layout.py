@@ -17,6 +17,10 @@ P_DRATE .. P_HYST, its state S_CMODE .. S_DWREF (the held command, then the
 drive's own state: mode, target, integral, held torque, update phase, fault,
 switches) and its outputs O_DMODE .. O_DWREF; a command row of step_held()
 and run_series is N_CMD floats (mode, q, w, torque), all in the q sense.
+
+The sensors (sensors.py) have their parameter slots P_ECPR .. P_SEED, the
+faults the kernel applies P_EFRZ .. P_FINJ, their state S_EQ .. S_JAM (the
+last readings and the noise counter) and the reported joint values O_JQ .. O_JV.
 """
 
 # Parameter vector P (float64[NP]) ---------------------------------------------
@@ -69,7 +73,25 @@ P_LMIN = P_DRATE + 11   # min limit switch position [m]: trips at x <= P_LMIN
 P_LMAX = P_DRATE + 12   # max limit switch position [m]: trips at x >= P_LMAX
 P_HOME = P_DRATE + 13   # home switch position [m]: on at x >= P_HOME
 P_HYST = P_DRATE + 14   # switch hysteresis [m]
-NP = P_DRATE + 15       # length of P
+# sensors (sensors.py, physics.md section 11) and the faults injected into the kernel
+P_ECPR = P_DRATE + 15   # motor encoder counts per revolution; 0: no quantisation
+P_ENOISE = P_DRATE + 16  # motor encoder noise standard deviation [rad]
+P_EBIAS = P_DRATE + 17  # motor encoder bias [rad], q sense
+P_EIDEAL = P_DRATE + 18  # 1.0: ideal encoder (no counts, noise or bias): it reads the truth
+P_SFIT = P_DRATE + 19   # 1.0: a linear scale on nut A is fitted
+P_SRES = P_DRATE + 20   # linear scale resolution [m]; 0: no quantisation
+P_SNOISE = P_DRATE + 21  # linear scale noise standard deviation [m]
+P_SBIAS = P_DRATE + 22  # linear scale bias [m]
+P_SIDEAL = P_DRATE + 23  # 1.0: ideal scale (no resolution, noise or bias): it reads the truth
+P_VFT = P_DRATE + 24    # velocity filter time constant [s]; 0: no filter
+P_SEED = P_DRATE + 25   # sensor_seed, the key of the noise sequence [-]
+P_EFRZ = P_DRATE + 26   # 1.0: encoder frozen (its reading holds, its velocity reads 0)
+P_SFRZ = P_DRATE + 27   # 1.0: linear scale frozen
+P_JAM = P_DRATE + 28    # 1.0: a rigid obstacle (end stop law) at P_JAMX blocks nut A
+P_JAMX = P_DRATE + 29   # jam position [m]
+P_TSCALE = P_DRATE + 30  # motor torque scale 0..1 (a weakened motor delivers this share)
+P_FINJ = P_DRATE + 31   # 1.0: a drive fault is injected (latched while set)
+NP = P_DRATE + 32       # length of P
 
 # State vector S (float64[NS]) -------------------------------------------------
 S_QM = 0        # motor angle [rad]
@@ -109,7 +131,14 @@ S_SWMAX = 34    # max limit switch tripped (1.0) or not (0.0)
 S_HOME = 35     # home switch on (1.0) or off (0.0)
 S_DFERR = 36    # following error q_ref - q_fb of the last position-mode update [rad]
 S_DWREF = 37    # velocity reference of the last drive update [rad/s]
-NS = 38         # length of S
+# sensors: the readings of the last sample (the end of a drive period), q sense
+S_EQ = 38       # motor encoder reading [rad]
+S_EW = 39       # motor rate from the encoder (difference quotient, filtered) [rad/s]
+S_XS = 40       # linear scale reading [m]
+S_VS = 41       # nut velocity from the scale (difference quotient, filtered) [m/s]
+S_NSAMP = 42    # sensor samples taken since reset: the index of the next noise pair [-]
+S_JAM = 43      # side the jam blocks: 1 motion toward +x, -1 toward -x, 0 no jam [-]
+NS = 44         # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]
@@ -138,7 +167,12 @@ O_HOME = 22     # home switch: 1 on, 0 off
 O_DFERR = 23    # following error q_ref - q_fb [rad] (position mode, else 0)
 O_DTCMD = 24    # drive torque command, before lag and saturation of the motor [N m]
 O_DWREF = 25    # velocity reference of the last drive update [rad/s] (0 in torque mode)
-NO = 26         # length of out
+# what the sensors report at the end of the step (joint_states), q sense
+O_JQ = 26       # screw joint angle: the encoder reading (the true screw angle if ideal) [rad]
+O_JW = 27       # screw joint rate from the encoder [rad/s]
+O_JX = 28       # nut joint position: the scale, or the encoder through the lead [m]
+O_JV = 29       # nut joint velocity, from the same sensor [m/s]
+NO = 30         # length of out
 
 # Records of run_series: one row per step ------------------------------------------
 REC_STATE = 10                  # a row starts with S[0:REC_STATE] (positions .. time)

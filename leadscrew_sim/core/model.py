@@ -20,6 +20,7 @@ import numpy as np
 from . import drive as D
 from . import kernel as K
 from . import layout as L
+from . import sensors as SN
 from .faults import SimulationFault
 from .output import energy_balance, series_result, step_output, stored_energy
 from .packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
@@ -130,6 +131,9 @@ class LeadScrewModel:
         s[L.S_HOME] = 1.0 if xa >= p.home_position else 0.0
         self.fault = None
         self.out[:] = 0.0
+        td = D.update_period(self.nsub, self.dt, p.drive_rate) * (self.dt / self.nsub)
+        SN.sample(self._P, s, q0, 0.0, xa, 0.0, td, 1.0, True)   # the readings at rest
+        self._report_at_rest()
         self._e0 = self._stored_energy()
         return self
 
@@ -211,8 +215,13 @@ class LeadScrewModel:
             nut_position, nut_velocity, motor_torque, axial_force,
             thread_torque, friction_force, normal_leading, normal_trailing,
             sliding_velocity, contact, stuck: one entry per step, in the units
-            and senses of StepOutput. With ``commands`` also the drive's:
-            mode, fault (codes), limit_min, limit_max, home (bool),
+            and senses of StepOutput; nut_b_position [m], nut_b_velocity [m/s],
+            nut_force and nut_b_force (the axial thread force on each nut body
+            [N]) as :meth:`truth_values`; sensor_screw_angle [rad],
+            sensor_screw_velocity [rad/s], sensor_nut_position [m] and
+            sensor_nut_velocity [m/s], what the sensors report
+            (:meth:`joint_values`). With ``commands`` also the drive's: mode,
+            fault (codes), limit_min, limit_max, home (bool),
             following_error [rad], drive_torque (the drive's torque command
             before the motor lag) [N m] and velocity_reference [rad/s].
 
@@ -248,7 +257,8 @@ class LeadScrewModel:
         rec = np.empty((n, L.REC_STATE + L.NO))
         done = K.run_series(self._P, self.state, self.out, tq_q, fe, cmds,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
-        res = series_result(rec[:done], hs, commands is not None)
+        res = series_result(rec[:done], hs, commands is not None, float(self._P[L.P_CL]),
+                            float(self._P[L.P_SL]))
         if done < n:
             self._fail(f'non-finite state at step {done}; integration stopped')
         return res
@@ -414,8 +424,20 @@ class LeadScrewModel:
         """Return the drive's position feedback now [rad], q sense (as the kernel reads it)."""
         P, s = self._P, self.state
         if P[L.P_DSCALE] > 0.5:
-            return P[L.P_DQ0] + (s[L.S_XA] - P[L.P_DX0]) * (1.0 / P[L.P_RT])
-        return s[L.S_QM]
+            return P[L.P_DQ0] + (s[L.S_XS] - P[L.P_DX0]) * (1.0 / P[L.P_RT])
+        return s[L.S_EQ]
+
+    def _report_at_rest(self):
+        """Fill the reported joint values O_JQ .. O_JV of the state at reset (as the kernel)."""
+        P, s, o = self._P, self.state, self.out
+        ideal = P[L.P_EIDEAL] > 0.5
+        o[L.O_JQ] = s[L.S_Q] if ideal else s[L.S_EQ]
+        o[L.O_JW] = 0.0
+        if P[L.P_SFIT] <= 0.5:
+            o[L.O_JX] = P[L.P_DX0] + (s[L.S_EQ] - P[L.P_DQ0]) * P[L.P_RT]
+        else:
+            o[L.O_JX] = s[L.S_XS]
+        o[L.O_JV] = 0.0
 
     @staticmethod
     def _mode_code(mode):
@@ -469,15 +491,35 @@ class LeadScrewModel:
 
     def joint_values(self):
         """
-        Return the published values as a tuple of floats (the node's per-tick fast path).
+        Return what the sensors report as a tuple of floats (the node's per-tick fast path).
 
         (screw_angle [rad], nut_position [m], screw_velocity [rad/s],
-        nut_velocity [m/s], motor_torque [N m], axial_force [N], thread_torque
-        [N m]): the same values as the fields of :meth:`output`.
+        nut_velocity [m/s], motor_torque [N m], axial_force [N]): the screw
+        joint from the motor encoder, the nut joint from the linear scale (or
+        the encoder through the lead without one), the applied motor torque and
+        the axial thread force. With ideal sensors these are the true values of
+        :meth:`output`.
+        """
+        o, hs = self.out.tolist(), self.params.hand_sign
+        return (hs * o[L.O_JQ], o[L.O_JX], hs * o[L.O_JW], o[L.O_JV], hs * o[L.O_TE] + 0.0,
+                o[L.O_FAX])
+
+    def truth_values(self):
+        """
+        Return the exact state of every body as a tuple of floats (``sim/joint_states``).
+
+        (motor angle [rad], screw angle [rad], nut A position [m], half-nut B
+        position [m], motor rate [rad/s], screw rate [rad/s], nut A velocity
+        [m/s], half-nut B velocity [m/s], applied motor torque [N m], thread
+        torque on the screw [N m], axial thread force on nut A [N], on half-nut
+        B [N], on both [N]); without a split nut B follows A and carries no force.
         """
         s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
-        return (hs * s[L.S_Q], s[L.S_XA], hs * s[L.S_DQ], s[L.S_VA], hs * o[L.O_TE] + 0.0,
-                o[L.O_FAX], hs * o[L.O_TTH])
+        cl, sl = float(self._P[L.P_CL]), float(self._P[L.P_SL])
+        f_a = (o[L.O_NLA] - o[L.O_NUA]) * cl + o[L.O_FFA] * sl
+        return (hs * s[L.S_QM], hs * s[L.S_Q], s[L.S_XA], s[L.S_XB], hs * s[L.S_WM],
+                hs * s[L.S_DQ], s[L.S_VA], s[L.S_VB], hs * o[L.O_TE] + 0.0, hs * o[L.O_TTH],
+                f_a, o[L.O_FAX] - f_a, o[L.O_FAX])
 
     def output(self):
         """Return the StepOutput of the current state and last step."""

@@ -71,7 +71,7 @@ def step_output(s, o, hs):
         thread_torque=hs * o[L.O_TTH], substeps=int(o[L.O_NSUB]))
 
 
-def series_result(r, hs, drive):
+def series_result(r, hs, drive, cl=1.0, sl=0.0):
     """
     Return the per-step arrays of a run from its records, in the theta sense.
 
@@ -83,6 +83,8 @@ def series_result(r, hs, drive):
         The hand sign of the thread (+1 right, -1 left).
     drive : bool
         Add the drive's outputs (a run with command rows).
+    cl, sl : float
+        cos and sin of the lead angle (the per-nut axial forces).
 
     """
 
@@ -97,7 +99,13 @@ def series_result(r, hs, drive):
         thread_torque=hand(o + L.O_TTH), friction_force=r[:, o + L.O_FFA],
         normal_leading=r[:, o + L.O_NLA], normal_trailing=r[:, o + L.O_NUA],
         sliding_velocity=r[:, o + L.O_VSA], contact=r[:, o + L.O_CONTA].astype(int),
-        stuck=r[:, o + L.O_STICKA] == 1.0)
+        stuck=r[:, o + L.O_STICKA] == 1.0,
+        nut_b_position=r[:, L.S_XB], nut_b_velocity=r[:, L.S_VB],
+        sensor_screw_angle=hand(o + L.O_JQ), sensor_screw_velocity=hand(o + L.O_JW),
+        sensor_nut_position=r[:, o + L.O_JX], sensor_nut_velocity=r[:, o + L.O_JV])
+    # the axial thread force on nut A, and the rest on half-nut B, as truth_values() forms them
+    f_a = ((r[:, o + L.O_NLA] - r[:, o + L.O_NUA]) * cl + r[:, o + L.O_FFA] * sl)
+    res.update(nut_force=f_a, nut_b_force=r[:, o + L.O_FAX] - f_a)
     if drive:   # the drive's outputs O_DMODE .. O_DWREF, in one copy
         d = np.ascontiguousarray(r[:, o + L.O_DMODE:o + L.O_DWREF + 1].T)
         d0 = L.O_DMODE
@@ -151,7 +159,8 @@ def stored_energy(p, P, s):
                 spring += 0.5 * k * e * e
     if not rigid:
         spring += 0.5 * p.coupling_stiffness * (s[L.S_QM] - s[L.S_Q]) ** 2
-    for pen in (p.stroke_min - s[L.S_XA], s[L.S_XA] - p.stroke_max):
+    jam = s[L.S_JAM] * (s[L.S_XA] - P[L.P_JAMX])   # the jam's penetration, if engaged
+    for pen in (p.stroke_min - s[L.S_XA], s[L.S_XA] - p.stroke_max, jam):
         if pen > 0:
             spring += 0.5 * p.end_stop_stiffness * pen * pen
     return kin, pot, spring

@@ -15,6 +15,7 @@ import numpy as np
 from . import drive as D
 from . import friction as F
 from . import layout as L
+from . import sensors as SN
 
 
 #: Largest number of substeps one step may take before the set is refused.
@@ -65,6 +66,7 @@ def pack_params(p):
     v[L.P_KP] = p.preload_stiffness
     v[L.P_FEXT] = p.external_force
     F.pack_friction(p, v)
+    SN.pack_sensors(p, v)
     D.pack_drive(p, v, initial_seating(p, v)[0])
     return v
 

@@ -105,6 +105,50 @@ class ScrewParams(Schema):
                                  'less the hysteresis (an output only)', -1000.0, 1000.0)
     switch_hysteresis: float = field(1e-3, 'm', 'hysteresis of the limit and home switches',
                                      0.0, 1.0)
+    # Sensors (physics.md section 11); all ideal by default
+    encoder_counts: int = field(0, '-', 'motor encoder counts per revolution N; 0 means no '
+                                'quantisation', 0, 2 ** 31 - 1)
+    encoder_noise: float = field(0.0, 'rad', 'standard deviation of the motor encoder\'s '
+                                 'Gaussian noise (added before the quantisation)', 0.0, 1.0)
+    encoder_bias: float = field(0.0, 'rad', 'motor encoder bias, added to the true angle',
+                                -10.0, 10.0)
+    linear_scale: bool = field(True, '-', 'a linear scale on the nut is fitted: joint_states '
+                               'reports the nut from it; false: from the motor encoder through '
+                               'the lead (backlash then invisible)', read_only=True)
+    scale_resolution: float = field(0.0, 'm', 'linear scale resolution r; 0 means no '
+                                    'quantisation', 0.0, 0.01)
+    scale_noise: float = field(0.0, 'm', 'standard deviation of the linear scale\'s Gaussian '
+                               'noise (added before the quantisation)', 0.0, 0.01)
+    scale_bias: float = field(0.0, 'm', 'linear scale bias, added to the true position',
+                              -1.0, 1.0)
+    velocity_filter_time: float = field(0.0, 's', 'time constant of the first-order filter of '
+                                        'the velocities from the sensors (difference '
+                                        'quotients over the drive period); 0 means none',
+                                        0.0, 10.0)
+    sensor_seed: int = field(0, '-', 'seed of the sensor noise and of the dropped messages',
+                             0, 2 ** 31 - 1)
+    state_delay: int = field(0, 'tick', 'joint_states and nut_position are delivered this many '
+                             'ticks after their sampling (stamped with the sampling time)',
+                             0, 10000)
+    command_delay: int = field(0, 'tick', 'a command acts this many ticks after it arrives',
+                               0, 10000)
+    # Faults injected at run time (ROS names fault.<name>)
+    fault_encoder_freeze: bool = field(False, '-', 'the motor encoder freezes: its reading '
+                                       'holds and its velocity reads 0')
+    fault_scale_freeze: bool = field(False, '-', 'the linear scale freezes likewise')
+    fault_state_drop_rate: float = field(0.0, '-', 'share of the joint_states and nut_position '
+                                         'messages dropped (seeded)', 0.0, 1.0)
+    fault_command_drop_rate: float = field(0.0, '-', 'share of the received commands dropped '
+                                           '(seeded; external_force is never dropped)',
+                                           0.0, 1.0)
+    fault_jam: bool = field(False, '-', 'a rigid obstacle at fault.jam_position blocks the '
+                            'nut on the side it lies (end stop stiffness and damping)')
+    fault_jam_position: float = field(0.0, 'm', 'position of the jam', -100.0, 100.0)
+    fault_motor_torque_scale: float = field(1.0, '-', 'share of the commanded torque the '
+                                            '(weakened) motor delivers', 0.0, 1.0)
+    fault_drive_fault: bool = field(False, '-', 'latch a drive fault now (torque off); it '
+                                    'stays latched while true and ~/clear_fault clears it '
+                                    'once false')
     # Anti-backlash split nut (section 7)
     anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring',
                                 read_only=True)
@@ -126,6 +170,21 @@ class ScrewParams(Schema):
                          'rises from standstill to sliding (a negative Stribeck drop); the '
                          'static coefficient is usually the larger')
         return notes
+
+    def active_faults(self):
+        """Return the injected faults that are on, as ``fault.<name>[=value]`` strings."""
+        on = []
+        for flag in ('encoder_freeze', 'scale_freeze', 'drive_fault'):
+            if getattr(self, f'fault_{flag}'):
+                on.append(f'fault.{flag}')
+        for rate in ('state_drop_rate', 'command_drop_rate'):
+            if getattr(self, f'fault_{rate}') > 0.0:
+                on.append(f'fault.{rate}={getattr(self, f"fault_{rate}"):g}')
+        if self.fault_jam:
+            on.append(f'fault.jam at {self.fault_jam_position:g} m')
+        if self.fault_motor_torque_scale < 1.0:
+            on.append(f'fault.motor_torque_scale={self.fault_motor_torque_scale:g}')
+        return on
 
     # Derived geometry -------------------------------------------------------
     @property
@@ -198,6 +257,9 @@ class ScrewParams(Schema):
         if self.limit_min_position >= self.limit_max_position:
             raise ParameterError('limit_min_position', f'{self.limit_min_position} m must be '
                                  f'below limit_max_position {self.limit_max_position} m')
+        if self.drive_feedback == 'linear_scale' and not self.linear_scale:
+            raise ParameterError('drive_feedback', "'linear_scale' needs a fitted scale "
+                                 '(linear_scale true)')
         if self.collar_mu > 0.0 and self.collar_radius == 0.0:
             raise ParameterError('collar_radius', '0 m while collar_mu > 0: give the collar '
                                  'friction radius')

@@ -4,7 +4,7 @@ from pathlib import Path
 import sys
 
 from . import yamlio
-from .fields import ParameterError
+from .fields import flatten, ParameterError
 from .params import ScrewParams
 
 
@@ -97,6 +97,7 @@ def physics_subset(values):
 
     """
     names = set(ScrewParams.names())
+    values = flatten(values)    # fault.jam and a nested fault: {jam: ...} -> fault_jam
     phys = {k: v for k, v in values.items() if k in names}
     other = {k: v for k, v in values.items() if k not in names}
     return phys, other

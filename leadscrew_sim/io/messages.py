@@ -2,97 +2,155 @@
 The state messages of one tick, encoded as the node publishes and records them.
 
 The node, ``simulate`` and ``resim`` all encode their states through
-:class:`StateEncoder`, so their files hold the same bytes. :data:`STATE_VALUES`
-says which values of a tick each state topic carries: a new state topic is an
-entry in :data:`leadscrew_sim.io.topics.TOPICS` and one here (with its
-template in :data:`TEMPLATES`).
+:class:`StateEncoder`, so their files hold the same bytes. A tick has two
+groups of values:
+
+- ``sensor``: what the axis's sensors report (:data:`SENSOR_VALUES`, in the
+  order of ``LeadScrewModel.joint_values()``), on ``joint_states`` and
+  ``nut_position``; these may reach the graph late or not at all (sensor
+  delay and dropped messages), stamped with their sampling time;
+- ``truth``: the exact state of every body (:data:`TRUTH_VALUES`, in the
+  order of ``LeadScrewModel.truth_values()``), on ``thread_force`` and
+  ``sim/joint_states``, never delayed.
+
+:data:`STATE_VALUES` says which values each state topic carries: a new
+state topic is an entry in :data:`leadscrew_sim.io.topics.TOPICS` and one
+here. The value names are the columns of ``LeadScrewModel.run()`` (the
+sensor ones with the prefix ``sensor_`` where a true value has the same name).
 """
 from .cdr import clock_template, float64_template, joint_state_template, wrench_template
 
-#: The values of one tick, in the order of ``LeadScrewModel.joint_values()``
-#: and named as the columns of ``LeadScrewModel.run()``: rad, m, rad/s, m/s, N m, N, N m.
-TICK_VALUES = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity', 'motor_torque',
-               'axial_force', 'thread_torque')
+#: What the sensors report in one tick: rad, m, rad/s, m/s, N m, N.
+SENSOR_VALUES = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity',
+                 'motor_torque', 'axial_force')
 
-#: State topic -> (stamped, the tick values its template takes, in order).
+#: The ``model.run()`` column of each sensor value.
+SENSOR_COLUMNS = ('sensor_screw_angle', 'sensor_nut_position', 'sensor_screw_velocity',
+                  'sensor_nut_velocity', 'motor_torque', 'axial_force')
+
+#: The exact state of one tick: rad, rad, m, m, rad/s, rad/s, m/s, m/s, N m, N m, N, N, N
+#: (axial_force is the sum of nut_force and nut_b_force, as the kernel forms it).
+TRUTH_VALUES = ('motor_angle', 'screw_angle', 'nut_position', 'nut_b_position',
+                'motor_velocity', 'screw_velocity', 'nut_velocity', 'nut_b_velocity',
+                'motor_torque', 'thread_torque', 'nut_force', 'nut_b_force', 'axial_force')
+
+#: The joints of ``sim/joint_states`` (after the joint prefix); nut_b_joint only with a
+#: split nut.
+TRUTH_JOINTS = ('motor_joint', 'screw_joint', 'nut_joint', 'nut_b_joint')
+
+
+def _truth_names(split_nut):
+    n = 4 if split_nut else 3
+    pos = ('motor_angle', 'screw_angle', 'nut_position', 'nut_b_position')[:n]
+    vel = ('motor_velocity', 'screw_velocity', 'nut_velocity', 'nut_b_velocity')[:n]
+    eff = ('motor_torque', 'thread_torque', 'nut_force', 'nut_b_force')[:n]
+    return pos + vel + eff
+
+
+#: State topic -> (stamped, group, the values its template takes, in order); the
+#: values of sim/joint_states depend on the split nut (see StateEncoder).
 STATE_VALUES = {
-    'joint_states': (True, ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity',
-                            'motor_torque', 'axial_force')),
-    'nut_position': (False, ('nut_position',)),
-    'thread_force': (True, ('axial_force', 'thread_torque')),
+    'joint_states': (True, 'sensor', SENSOR_VALUES),
+    'nut_position': (False, 'sensor', ('nut_position',)),
+    'thread_force': (True, 'truth', ('axial_force', 'thread_torque')),
+    'sim/joint_states': (True, 'truth', _truth_names(False)),
 }
 
-#: State topic -> template factory of the joint names (screw joint, nut joint).
-TEMPLATES = {
-    'joint_states': lambda joints: joint_state_template(joints, 2, 2, 2),
-    'nut_position': lambda joints: float64_template(),
-    'thread_force': lambda joints: wrench_template(),
-}
+#: The topics of each group.
+SENSOR_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'sensor')
+TRUTH_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'truth')
 
 
 class StateEncoder:
     """
     Encode the states of one tick, as the node publishes and records them.
 
-    Joint names are ``<joint_prefix>screw_joint`` and ``<joint_prefix>nut_joint``.
-    The templates are also attributes named as their topics, each called as
-    ``(stamp_ns, values)``: ``joint_states(stamp, (screw_angle, nut_position,
-    screw_velocity, nut_velocity, motor_torque, axial_force))``,
-    ``nut_position(None, (x,))``, ``thread_force(stamp, (axial_force,
-    thread_torque))`` and ``clock(stamp, ())``. Stamps are integer
-    nanoseconds >= 0 (sec fits int32).
+    Joint names are ``<joint_prefix>screw_joint`` and ``<joint_prefix>nut_joint``
+    on ``joint_states``; ``sim/joint_states`` names ``motor_joint``,
+    ``screw_joint``, ``nut_joint`` and, with a split nut, ``nut_b_joint``. The
+    templates are also attributes named as their topics (``sim/joint_states``
+    as ``truth_joint_states``), each called as ``(stamp_ns, values)``;
+    ``clock(stamp, ())`` encodes /clock. Stamps are integer nanoseconds >= 0.
 
     Parameters
     ----------
     joint_prefix : str
         Prefix of the joint names.
+    split_nut : bool
+        The axis has the anti-backlash half-nut B (a fourth joint on ``sim/joint_states``).
 
     """
 
-    def __init__(self, joint_prefix=''):
+    def __init__(self, joint_prefix='', split_nut=False):
         """Build the byte templates for the joint names of ``joint_prefix``."""
         self.joint_prefix = joint_prefix
         self.joint_names = (joint_prefix + 'screw_joint', joint_prefix + 'nut_joint')
-        self.templates = {t: make(self.joint_names) for t, make in TEMPLATES.items()}
-        for topic, template in self.templates.items():
-            setattr(self, topic, template)
+        n = 4 if split_nut else 3
+        self.truth_joints = tuple(joint_prefix + j for j in TRUTH_JOINTS[:n])
+        self.templates = {
+            'joint_states': joint_state_template(self.joint_names, 2, 2, 2),
+            'nut_position': float64_template(),
+            'thread_force': wrench_template(),
+            'sim/joint_states': joint_state_template(self.truth_joints, n, n, n),
+        }
+        self.joint_states = self.templates['joint_states']
+        self.nut_position = self.templates['nut_position']
+        self.thread_force = self.templates['thread_force']
+        self.truth_joint_states = self.templates['sim/joint_states']
         self.clock = clock_template()
-        self._plan = tuple((topic, self.templates[topic], stamped,
-                            tuple(TICK_VALUES.index(n) for n in names))
-                           for topic, (stamped, names) in STATE_VALUES.items())
+        values = dict(STATE_VALUES)
+        values['sim/joint_states'] = (True, 'truth', _truth_names(split_nut))
+        order = {'sensor': SENSOR_VALUES, 'truth': TRUTH_VALUES}
+        self._plan = {
+            group: tuple((topic, self.templates[topic], stamped,
+                          tuple(order[group].index(name) for name in names), names)
+                         for topic, (stamped, g, names) in values.items() if g == group)
+            for group in order}
 
-    def tick(self, stamp_ns, values):
+    def sensor(self, stamp_ns, values):
         """
-        Return [(topic, bytes)] of every state topic for one tick.
+        Return [(topic, bytes)] of the sensor topics of one sample.
 
         Parameters
         ----------
         stamp_ns : int
-            Stamp of the states [ns].
+            The sampling time [ns].
         values : sequence of float
-            The tick's values in the order of :data:`TICK_VALUES`.
+            The values of :data:`SENSOR_VALUES`, in that order.
 
         """
         return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
-                for topic, template, stamped, index in self._plan]
+                for topic, template, stamped, index, _n in self._plan['sensor']]
 
-    def rows(self, stamps_ns, columns):
+    def truth(self, stamp_ns, values):
         """
-        Return [(topic, uint8 rows)] of every state topic for many ticks at once.
+        Return [(topic, bytes)] of the truth topics of one tick.
 
         Parameters
         ----------
+        stamp_ns : int
+            The tick's time [ns].
+        values : sequence of float
+            The values of :data:`TRUTH_VALUES`, in that order.
+
+        """
+        return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
+                for topic, template, stamped, index, _n in self._plan['truth']]
+
+    def rows(self, group, stamps_ns, columns):
+        """
+        Return [(topic, uint8 rows)] of the topics of a group for many ticks at once.
+
+        Parameters
+        ----------
+        group : str
+            ``'sensor'`` or ``'truth'``.
         stamps_ns : numpy.ndarray of int64
-            Stamp of each tick [ns].
-        columns : sequence of numpy.ndarray
-            One array per value of :data:`TICK_VALUES`, in that order.
+            Stamp of each row [ns].
+        columns : mapping of str to numpy.ndarray
+            One array per value name of the group.
 
         """
         return [(topic, template.rows(stamps_ns if stamped else None,
-                                      [columns[i] for i in index]))
-                for topic, template, stamped, index in self._plan]
-
-    @staticmethod
-    def values(o):
-        """Return the values of :data:`TICK_VALUES` of a StepOutput ``o``."""
-        return tuple(getattr(o, name) for name in TICK_VALUES)
+                                      [columns[name] for name in names]))
+                for topic, template, stamped, _i, names in self._plan[group]]

@@ -113,7 +113,7 @@ class RunWriter:
                 self.ids[key] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
                                                      qos_profile_yaml(**qos), trim=False)
         self.write = self.rec.write
-        self.enc = M.StateEncoder(joint_prefix)
+        self.enc = M.StateEncoder(joint_prefix, bool(params is not None and params.anti_backlash))
 
     def write_description(self, log_time_ns):
         """Write robot_description and the static transforms (stamp = log time) once."""
@@ -124,11 +124,12 @@ class RunWriter:
         self.write(self.ids['/tf_static'], TF.encode_tf_message(
             [(t, p, c, tr, q) for p, c, tr, q in self.tree.static_transforms()]), t)
 
-    def write_tf(self, stamp_ns, screw_angle, nut_position):
-        """Write the /tf of one state tick at ``stamp_ns`` (stamp and log time)."""
+    def write_tf(self, stamp_ns, screw_angle, nut_position, log_time_ns=None):
+        """Write the /tf of one state tick at ``stamp_ns`` (log time: the stamp by default)."""
         if self.tree is not None:
             self.write(self.ids['/tf'], self.tf(
-                stamp_ns, self.tree.moving_values(screw_angle, nut_position)), stamp_ns)
+                stamp_ns, self.tree.moving_values(screw_angle, nut_position)),
+                stamp_ns if log_time_ns is None else log_time_ns)
 
     def tf_rows(self, stamps_ns, screw_angles, nut_positions):
         """Return the /tf messages of many ticks as uint8 rows (``TfEncoder.rows``)."""
@@ -160,7 +161,8 @@ def parameters_record(params, preset, update_rate, dt_ns, run_overrides=None):
         Run settings other than :data:`SIMULATE_SETTINGS` (``joint_prefix``).
 
     """
-    values = {name: str(getattr(params, name)) for name in ScrewParams.names()}
+    values = {public: str(getattr(params, name)) for name, public in
+              zip(ScrewParams.names(), ScrewParams.parameter_names())}
     cfg = dict(SIMULATE_SETTINGS, update_rate=float(update_rate), **(run_overrides or {}))
     values.update({name: str(v) for name, v in cfg.items()})
     values.update(preset=str(preset), update_rate=str(float(update_rate)),
@@ -182,7 +184,8 @@ def params_from_record(record):
         ``{name: str(value)}`` as :func:`parameters_record` and the node write it.
 
     """
-    missing = [name for name in ScrewParams.names() if name not in record]
+    missing = [public for name, public in zip(ScrewParams.names(), ScrewParams.parameter_names())
+               if name not in record and public not in record]
     return ScrewParams.from_text(record), missing
 
 

@@ -24,6 +24,7 @@ TOPICS = {
     'joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
     'nut_position': ('std_msgs/msg/Float64', 'state', RELIABLE_10),
     'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state', RELIABLE_10),
+    'sim/joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
     'limit_switch/min': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     'limit_switch/max': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     'home_switch': ('std_msgs/msg/Bool', 'switch', LATCHED_1),

@@ -12,7 +12,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from ..core.commands import ACCEPTED, CommandHold, IGNORED, JOINT_COMMAND_MODES
+from ..core.commands import ACCEPTED, CommandHold, DROPPED, IGNORED, JOINT_COMMAND_MODES
 from ..core.drive import MODE_NAMES, MODE_TORQUE
 from ..io.cdr import decode_float64, DecodeError
 
@@ -54,12 +54,15 @@ class CommandInputs:
         How nut commands map to the motor.
     joint_command_mode : str
         The run setting joint_command_mode.
+    params : ScrewParams, optional
+        The command delay and drop rate (:meth:`CommandHold.set_faults`).
 
     """
 
-    def __init__(self, logger, joint_prefix, timeout, nut_map=None, joint_command_mode='auto'):
+    def __init__(self, logger, joint_prefix, timeout, nut_map=None, joint_command_mode='auto',
+                 params=None):
         """Start with no command."""
-        self.hold = CommandHold(joint_prefix, timeout, nut_map, joint_command_mode)
+        self.hold = CommandHold(joint_prefix, timeout, nut_map, joint_command_mode, params)
         self._log = logger
         self.cmd_wall = None
         self.rejected = 0                  # malformed or non-finite commands
@@ -106,6 +109,8 @@ class CommandInputs:
             self._log.info(f'{MODE_NAMES[self.hold.mode]} command resumed')
 
     def _take(self, reason, was_stale):
+        if reason is DROPPED:
+            return
         if reason:
             self._reject(reason)
         else:
@@ -134,6 +139,8 @@ class CommandInputs:
                                                   msg.effort, time_ns)
         if result == ACCEPTED:
             self._accepted(was_stale)
+        elif result == DROPPED:
+            pass
         elif result == IGNORED:
             self.ignored += 1
             if not self._warned_no_joint:

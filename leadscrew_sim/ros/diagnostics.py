@@ -20,7 +20,7 @@ def _us(ns):
 
 
 def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, target_rate,
-                     command_age, stale, loop, lateness, counts, recorder):
+                     command_age, stale, loop, lateness, counts, recorder, dropped=(0, 0)):
     """
     Return the DiagnosticArray of one window.
 
@@ -48,6 +48,8 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         (commands, rejected commands, ignored commands).
     recorder : leadscrew_sim.io.recorder.Recorder
         The recorder (``status()``, ``active``, ``dropped``).
+    dropped : tuple of int
+        (commands, state samples) lost to the injected drop rates so far.
 
     """
     p, m = params, model
@@ -60,6 +62,9 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         level, msg = DiagnosticStatus.WARN, (
             'torque command stale: applying 0 N m' if drive['mode_name'] == 'torque' else
             'command stale: quick stop, holding the position')
+    faults = p.active_faults()
+    if faults:
+        level, msg = DiagnosticStatus.WARN, f'injected faults active: {", ".join(faults)}'
     if rec_err:
         level, msg = DiagnosticStatus.WARN, f'recording: {rec_err}'
     if drive['fault']:
@@ -69,6 +74,8 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         level, msg = DiagnosticStatus.ERROR, f'simulation fault: {m.fault}'
     values = _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age,
                      stale, loop, lateness, counts, recorder)
+    values += [('active_faults', ', '.join(faults) or 'none'),
+               ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1]))]
     status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
                               hardware_id=f'leadscrew_sim/{preset}',
                               values=[KeyValue(key=k, value=v) for k, v in values])

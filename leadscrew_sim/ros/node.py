@@ -44,7 +44,8 @@ from std_srvs.srv import SetBool, Trigger
 
 from ..core import ParameterError, ScrewParams
 from ..core.commands import COMMAND_LOG_TIME, NutMap
-from ..core.drive import FAULT_NAMES, FAULT_NONE
+from ..core.delivery import StateDelivery
+from ..core.drive import FAULT_NAMES
 from ..core.faults import SimulationFault
 from ..core.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
 from ..core.model import LeadScrewModel
@@ -52,7 +53,7 @@ from ..core.packing import MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
-from ..io.run_file import CLEAR_FAULT_RECORD, UPDATE_RECORD
+from ..io.run_file import UPDATE_RECORD
 from ..io.session import StorageOptions
 from ..io.topics import SWITCH_TOPICS, TOPICS
 from .commands import CommandInputs
@@ -60,6 +61,7 @@ from .description import RobotDescription
 from .diagnostics import diagnostic_array
 from .interfaces import message_class, qos_profile
 from .loops import ClockLoops
+from .services import AxisServices
 from .parameters import (DEFAULT_PRESET, declare_parameters, integers_as_doubles, StartupError,
                          validate_changes)
 from .timing import LoopStats
@@ -75,7 +77,7 @@ COMMAND_QOS = qos_profile(TOPICS['torque_command'][2])
 STATE_QOS = qos_profile(TOPICS['joint_states'][2])
 
 
-class LeadScrewSimNode(ClockLoops, Node):
+class LeadScrewSimNode(AxisServices, ClockLoops, Node):
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
@@ -94,7 +96,9 @@ class LeadScrewSimNode(ClockLoops, Node):
 
         # Commands (zero-order held, in the time base of _command_time) and counters.
         self.inputs = CommandInputs(self.get_logger(), s.joint_prefix, s.command_timeout,
-                                    NutMap.of_model(self.model), s.joint_command_mode)
+                                    NutMap.of_model(self.model), s.joint_command_mode,
+                                    self.params)
+        self.delivery = StateDelivery(self.params)   # the sensor states' delay and loss
         self.tick_time = 0                 # time base of command ages (see _step)
         self._events = 0
 
@@ -134,7 +138,8 @@ class LeadScrewSimNode(ClockLoops, Node):
     # -- parameters --------------------------------------------------------
     def all_parameter_values(self):
         """Return {name: str(value)} of every parameter plus the run settings."""
-        values = {name: str(getattr(self.params, name)) for name in ScrewParams.names()}
+        values = {public: str(getattr(self.params, name)) for name, public in
+                  zip(ScrewParams.names(), ScrewParams.parameter_names())}
         values.update({name: str(v) for name, v in self.settings.to_dict().items()})
         values.update(preset=self.preset, update_rate=str(self.settings.update_rate),
                       clock_mode=self.mode, dt_ns=str(self.dt_ns), t0_ns=str(self.t0_ns),
@@ -152,6 +157,8 @@ class LeadScrewSimNode(ClockLoops, Node):
             for note in set(change.params.advisories()) - set(self.params.advisories()):
                 self.get_logger().warn(note)
             self.params = change.params
+            self.inputs.hold.set_faults(change.params)
+            self.delivery.set_faults(change.params)
             self.recorder.add_metadata(UPDATE_RECORD, dict(
                 {k: str(v) for k, v in change.physics.items()},
                 log_time_ns=str(self._sim_now())))
@@ -218,7 +225,7 @@ class LeadScrewSimNode(ClockLoops, Node):
             self._desc.publish_static(self._sim_now(), None)
 
     def _make_serializers(self):
-        self._encoder = StateEncoder(self.settings.joint_prefix)
+        self._encoder = StateEncoder(self.settings.joint_prefix, self.params.anti_backlash)
         self._ser_clock = self._encoder.clock
 
     def recording_channels(self):
@@ -289,45 +296,6 @@ class LeadScrewSimNode(ClockLoops, Node):
         self._record_cmd('external_force', data)
         self.inputs.external_force(data)
 
-    def _on_reset(self, _request, response):
-        self.model.reset()
-        self.inputs.reset(NutMap.of_model(self.model))
-        self.recorder.add_metadata('leadscrew_sim_reset', {'log_time_ns': self._sim_now()})
-        response.success = True
-        response.message = (f'reset to the initial state at stamp {self._sim_now() / NS:.6f} s '
-                            f'({"ROS time" if self.mode == "realtime" else "sim time"})')
-        self.get_logger().info(response.message)
-        return response
-
-    def _on_clear_fault(self, _request, response):
-        code = self.model.clear_fault()
-        self._fault_seen = 0
-        if code != FAULT_NONE:
-            self.recorder.add_metadata(CLEAR_FAULT_RECORD, {'log_time_ns': self._sim_now()})
-        if code == FAULT_NONE:
-            response.success, response.message = True, 'no drive fault latched'
-        else:
-            response.success = True
-            response.message = (f'cleared the {FAULT_NAMES[code]} fault: holding the '
-                                'position, waiting for a command')
-            self.get_logger().info(response.message)
-        return response
-
-    def _on_record(self, request, response):
-        result = self.set_parameters([rclpy.parameter.Parameter('record', value=request.data)])
-        ok = result[0].successful
-        if self.recorder.active:
-            self.recorder.wait_for_path(timeout=5.0)
-        file, _size, _n, err = self.recorder.status()
-        response.success = bool(ok and (self.recorder.active == request.data))
-        if not ok:
-            response.message = result[0].reason
-        elif self.recorder.active:
-            response.message = f'recording to {file}' if file else 'recording (file not open yet)'
-        else:
-            response.message = err or 'recording stopped'
-        return response
-
     # -- stepping ----------------------------------------------------------------
     def _step(self, age_now):
         """Advance one fixed step and publish; age_now is the time base of command ages."""
@@ -344,8 +312,7 @@ class LeadScrewSimNode(ClockLoops, Node):
                                     'call ~/reset to restart')
             return
         self.n += 1
-        if self.n % self.settings.publish_decimation == 0:
-            self._publish_states()
+        self._publish_states(self.n % self.settings.publish_decimation == 0)
         state = model.state
         switches = (state[S_SWMIN], state[S_SWMAX], state[S_HOME])
         if switches != self._switches or self.n % self._switch_period == 0:
@@ -355,12 +322,26 @@ class LeadScrewSimNode(ClockLoops, Node):
         if self._pub_clock is not None:
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
 
-    def _publish_states(self):
-        stamp, values = self._sim_now(), self.model.joint_values()
-        for topic, data in self._encoder.tick(stamp, values):
-            self._emit(topic, data)
-        if self._desc is not None:
-            self._desc.publish_tf(stamp, values[0], values[1], self.recorder)
+    def _publish_states(self, sampled):
+        """
+        Publish the sensor samples due now and, on a sampled tick, the truth.
+
+        The sensor states pass through :class:`StateDelivery` (delay, loss) with
+        their sampling stamp; /tf follows the last delivered joint values.
+        """
+        stamp, model, enc = self._sim_now(), self.model, self._encoder
+        delivery = self.delivery
+        if sampled:
+            delivery.sample(self.n, stamp, model.joint_values())
+        values = None
+        for s_stamp, values in delivery.due(self.n):
+            for topic, data in enc.sensor(s_stamp, values):
+                self._emit(topic, data)
+        if sampled:
+            for topic, data in enc.truth(stamp, model.truth_values()):
+                self._emit(topic, data)
+        if values is not None and self._desc is not None:
+            self._desc.publish_tf(s_stamp, values[0], values[1], self.recorder)
 
     def _publish_switches(self, switches):
         """Publish and record the switch states (on a change and at 10 Hz)."""
@@ -407,7 +388,8 @@ class LeadScrewSimNode(ClockLoops, Node):
             clock_mode=self.mode, sim_time_ns=self._sim_now(),
             target_rate=self.settings.update_rate, command_age=age, stale=inp.hold.stale,
             loop=self.loop, lateness=lateness,
-            counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder)
+            counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder,
+            dropped=(inp.hold.dropped, self.delivery.dropped))
         self._pub_diag.publish(serialize_message(arr))
 
     def close(self):

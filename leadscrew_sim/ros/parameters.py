@@ -15,6 +15,7 @@ import math
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from ..core import load_preset, ParameterError, ScrewParams
+from ..core.fields import field_name, public_name
 from ..core.presets import preset_label
 from ..core.settings import RunSettings
 
@@ -89,15 +90,16 @@ def declare_parameters(node):
     physics, run = ScrewParams.field_info(), RunSettings.field_info()
     try:
         params = ScrewParams.from_dict(
-            {k: overrides[k] for k in physics if k in overrides}, base=base)
+            {k: overrides[public_name(k)] for k in physics if public_name(k) in overrides},
+            base=base)
         settings = RunSettings.from_dict({k: overrides[k] for k in run if k in overrides})
     except ParameterError as exc:
         raise StartupError(str(exc)) from None
     for schema, values in ((physics, params), (run, settings)):
         for name, (_typ, _default, md) in schema.items():
-            _declare(node, name, getattr(values, name), md, md['read_only'])
+            _declare(node, public_name(name), getattr(values, name), md, md['read_only'])
     for name in getattr(node, '_parameter_overrides', {}):
-        if name not in physics and name not in run and name not in OTHER_PARAMETERS:
+        if field_name(name) not in physics and name not in run and name not in OTHER_PARAMETERS:
             node.get_logger().warn(f"ignoring unknown parameter '{name}'")
     return preset, params, settings
 
@@ -117,7 +119,7 @@ def validate_changes(parameters, params, settings):
     (``use_sim_time``) pass through untouched.
     """
     physics_names, run_names = ScrewParams.field_info(), RunSettings.field_info()
-    physics = {p.name: p.value for p in parameters if p.name in physics_names}
+    physics = {p.name: p.value for p in parameters if field_name(p.name) in physics_names}
     run = {p.name: p.value for p in parameters if p.name in run_names}
     new_params = ScrewParams.from_dict(physics, base=params) if physics else None
     new_settings = RunSettings.from_dict(run, base=settings) if run else None
@@ -125,7 +127,7 @@ def validate_changes(parameters, params, settings):
 
 
 #: Fields whose ROS parameter type is DOUBLE.
-_DOUBLES = frozenset(name for schema in (ScrewParams, RunSettings)
+_DOUBLES = frozenset(public_name(name) for schema in (ScrewParams, RunSettings)
                      for name, (typ, _d, _md) in schema.field_info().items() if typ is float)
 
 

@@ -1,0 +1,75 @@
+"""
+The fault schedule of ``simulate --faults FILE``: parameter changes at given times.
+
+Each line is ``time,parameter,value`` (s, a physics or ``fault.*`` parameter,
+a YAML scalar); ``#`` starts a comment and a first line that is not a time
+is a header. A change at time t acts from the first step that starts at or
+after t, as a ``ros2 param set`` between two ticks of the node does, and it
+is recorded as a parameter update with that step's log time, so ``resim``
+applies it at the same step.
+"""
+import math
+
+from .args import CliError, parse_scalar
+from ..core.fields import field_name
+from ..core.params import ParameterError, ScrewParams
+
+
+def read_schedule(path, params, dt_ns):
+    """
+    Return [(step, {field name: value})] of a schedule file, in step order.
+
+    Every change is validated on top of the ones before it, so a bad line is
+    reported with its number before anything runs.
+
+    Parameters
+    ----------
+    path : str
+        The schedule file.
+    params : ScrewParams
+        The parameters at the start of the run.
+    dt_ns : int
+        The step [ns].
+
+    """
+    try:
+        fh = open(path, newline='')
+    except OSError as exc:
+        raise CliError(f'--faults {path}: {exc.strerror or exc}') from None
+    names = set(ScrewParams.names())
+    steps = {}
+    last_t = -math.inf
+    with fh:
+        for lineno, line in enumerate(fh, 1):
+            text = line.split('#', 1)[0].strip()
+            if not text:
+                continue
+            cells = [c.strip() for c in text.split(',')]
+            where = f'--faults {path}, line {lineno}'
+            try:
+                t = float(cells[0])
+            except ValueError:
+                if lineno == 1 or not steps:
+                    continue                        # a header line
+                raise CliError(f'{where}: expected "time,parameter,value", got '
+                               f'{text[:60]!r}') from None
+            if len(cells) != 3:
+                raise CliError(f'{where}: expected "time,parameter,value", got {text[:60]!r}')
+            if not (math.isfinite(t) and t >= 0.0):
+                raise CliError(f'{where}: time {cells[0]} s must be finite and >= 0')
+            if t < last_t:
+                raise CliError(f'{where}: time {t} s goes backwards (previous {last_t} s)')
+            last_t = t
+            name = field_name(cells[1])
+            if name not in names:
+                raise CliError(f"{where}: unknown parameter '{cells[1]}'")
+            if ScrewParams.field_info()[name][2]['read_only']:
+                raise CliError(f"{where}: '{cells[1]}' is read-only while the axis runs")
+            value = parse_scalar(cells[2])
+            try:
+                params = ScrewParams.from_dict({name: value}, base=params)
+            except ParameterError as exc:
+                raise CliError(f'{where}: {exc}') from None
+            step = max(0, math.ceil(t * 1e9 / dt_ns - 1e-9))
+            steps.setdefault(step, {})[name] = getattr(params, name)
+    return sorted(steps.items())
