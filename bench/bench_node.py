@@ -1,8 +1,13 @@
 """
 Benchmark the node's real-time loop against the machine's noise floor.
 
-Run: .venv/bin/python bench/bench_node.py [--duration 60] [--rate 1000]
+Run: .venv/bin/python bench/bench_node.py [--duration 60] [--rate 1000] [--sensors]
 (with AMENT_PREFIX_PATH and NUMBA_CACHE_DIR set as in the Makefile).
+
+With ``--sensors`` the two runs are the node with every sensor model on
+(:data:`SENSOR_MODELS`: encoder counts, noise and bias, a linear scale with its
+resolution, noise and bias, the velocity filter, state and command delays)
+and the same node with ideal sensors, instead of the node and the bare loop.
 
 In one run, one after the other, for ``--duration`` s each:
 1. ``leadscrew_sim_node`` (realtime, recording on, ``stats_file`` set);
@@ -30,6 +35,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 NS = 1_000_000_000
+
+#: The sensor models of ``--sensors``: every one on.
+SENSOR_MODELS = dict(encoder_counts=4096, encoder_noise=2e-4, encoder_bias=1e-4,
+                     scale_resolution=1e-6, scale_noise=2e-7, scale_bias=1e-6,
+                     velocity_filter_time=1e-3, sensor_seed=7, state_delay=2, command_delay=1)
 
 
 def cpu_seconds(pid):
@@ -227,7 +237,7 @@ def measure(argv, stats_path, duration, label):
                 lat_n=len(latencies), commands=k)
 
 
-def report(node, bare):
+def report(node, bare, names=('node', 'bare loop')):
     """Print the two runs side by side."""
     rows = [
         ('achieved rate (loop) [Hz]', lambda r: r['stats']['achieved_rate'], '{:.2f}'),
@@ -243,7 +253,7 @@ def report(node, bare):
         ('cmd->state latency p99 [us]', lambda r: r['lat_p99'] / 1e3, '{:.1f}'),
         ('latency samples', lambda r: r['lat_n'], '{}'),
     ]
-    print(f'{"":32s}{"node":>14s}{"bare loop":>14s}{"ratio":>10s}')
+    print(f'{"":32s}{names[0]:>14s}{names[1]:>14s}{"ratio":>10s}')
     for name, get, fmt in rows:
         a, b = get(node), get(bare)
         try:
@@ -259,6 +269,8 @@ def main():
     ap.add_argument('--duration', type=float, default=60.0)
     ap.add_argument('--rate', type=float, default=1000.0)
     ap.add_argument('--preset', default='tr12x3')
+    ap.add_argument('--sensors', action='store_true', help='compare the node with every '
+                    'sensor model on against the node with ideal sensors')
     ap.add_argument('--bare', action='store_true', help=argparse.SUPPRESS)
     ap.add_argument('--stats', help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -276,6 +288,15 @@ def main():
                  '--rate', str(args.rate), '--stats', str(bare_stats)]
     print(f'bench_node: {args.duration:g} s each at {args.rate:g} Hz, preset {args.preset}, '
           f'recording on; {os.cpu_count()} CPUs; files in {tmp}', flush=True)
+    if args.sensors:
+        real_stats = tmp / 'sensors.json'
+        real_argv = [a.replace(str(node_stats), str(real_stats)) for a in node_argv]
+        for name, value in SENSOR_MODELS.items():
+            real_argv += ['-p', f'{name}:={value}']
+        real = measure(real_argv, real_stats, args.duration, 'sensors on')
+        ideal = measure(node_argv, node_stats, args.duration, 'ideal')
+        report(real, ideal, ('sensors on', 'ideal'))
+        return 0
     node = measure(node_argv, node_stats, args.duration, 'node')
     bare = measure(bare_argv, bare_stats, args.duration, 'bare loop')
     report(node, bare)

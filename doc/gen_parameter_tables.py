@@ -19,6 +19,7 @@ Usage::
 from pathlib import Path
 import sys
 
+from leadscrew_sim.core.fields import public_name
 from leadscrew_sim.core.params import ScrewParams
 from leadscrew_sim.core.settings import RunSettings
 
@@ -70,7 +71,7 @@ def table(schema):
         if md.get('read_only'):
             meaning += ' (read-only at run time)'
         unit = md['unit']
-        lines.append(f'| `{name}` | {unit} | {default_text(default)} | '
+        lines.append(f'| `{public_name(name)}` | {unit} | {default_text(default)} | '
                      f'{range_text(typ, md)} | {meaning} |')
     return lines
 

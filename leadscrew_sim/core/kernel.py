@@ -50,7 +50,7 @@ from .layout import (
     REC_ROW, REC_STATE,
     S_CMODE, S_CQ, S_CT, S_CW, S_DFAULT, S_DFERR, S_DINT, S_DMODE, S_DPHASE, S_DQ, S_DQREF,
     S_DQS, S_DTLIM, S_DTOUT, S_DWQS, S_DWREF, S_EDAMP, S_EFRIC, S_EQ, S_EW, S_FAPREV, S_HOME,
-    S_JAM, S_MODE0, S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_VS,
+    S_JAM, S_MODE0, S_NSAMP, S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_VS,
     S_WEXT, S_WIN, S_WM, S_XA, S_XB, S_XS,
     WK_A, WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC, WK_V0,
     WK_W,
@@ -152,7 +152,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         from the linear scale;  q_ref0, x_ref0, irt: its reference angle [rad] and nut
         position [m], 1 / rt [rad/m];  l_min, l_max, x_home, hyst: switch positions and
         hysteresis [m]
-      sensors: beta: velocity filter gain per sample;  t_scale: motor torque
+      sensors: eq0, ew0, xs0, vs0, ns0: the sensor slots at the step's start;
+        beta: velocity filter gain per sample;  t_scale: motor torque
         scale;  jam_on, jam_x, jam_side: the jam, its position [m] and side (1
         blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N] and penetration
         [m];  enc_live: the encoder is ideal and not frozen;  eq, ew: encoder
@@ -313,6 +314,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         d_wqs = S[S_DWQS]
         d_ferr = S[S_DFERR]
         d_wref = S[S_DWREF]
+        # the sensor slots the substeps write, restored if the step fails
+        eq0, ew0, xs0, vs0, ns0 = S[S_EQ], S[S_EW], S[S_XS], S[S_VS], S[S_NSAMP]
         if P[P_FINJ] > 0.5 and d_fault == FAULT_NONE:   # an injected fault latches
             d_fault = FAULT_INJECTED
         jam_side = 0.0
@@ -721,6 +724,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         if not (math.isfinite(qm) and math.isfinite(q) and math.isfinite(xa) and math.isfinite(xb)
                 and math.isfinite(wm) and math.isfinite(dq) and math.isfinite(va)
                 and math.isfinite(vb) and math.isfinite(te)):
+            S[S_EQ], S[S_EW], S[S_XS], S[S_VS], S[S_NSAMP] = eq0, ew0, xs0, vs0, ns0
             return i
         # write the state back once
         S[S_QM] = qm

@@ -145,11 +145,12 @@ def test_simulate_file_layout(sim_file):
                      '/joint_states': 'sensor_msgs/msg/JointState',
                      '/nut_position': 'std_msgs/msg/Float64',
                      '/thread_force': 'geometry_msgs/msg/WrenchStamped',
+                     '/sim/joint_states': 'sensor_msgs/msg/JointState',
                      '/robot_description': 'std_msgs/msg/String',
                      '/tf_static': 'tf2_msgs/msg/TFMessage',
                      '/tf': 'tf2_msgs/msg/TFMessage'}
     params = meta['leadscrew_sim_parameters']
-    assert set(ScrewParams.field_info()) <= set(params)
+    assert set(ScrewParams.parameter_names()) <= set(params)
     assert params['clock_mode'] == 'simulate' and params['preset'] == 'tr12x3'
     assert params['update_rate'] == '1000.0' and params['dt_ns'] == '1000000'
     assert 'rosbag2' in meta
@@ -233,7 +234,8 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
         if k * ms in force_at:
             expected.append(('/external_force', k * ms))
         expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
-                                                 '/thread_force', '/tf', '/clock')]
+                                                 '/thread_force', '/sim/joint_states', '/tf',
+                                                 '/clock')]
     assert [(t, lt) for t, lt, _ in seq] == expected
     r = cli_ok('resim', out, '--output', tmp_path / 'again.mcap')
     assert _overall(r.stdout) == 0.0

@@ -342,14 +342,14 @@ def test_invalid_parameters_are_refused_with_name(kw, name):
 
 @pytest.mark.parametrize('hand', ['right', 'left'])
 def test_joint_values_are_the_output_fields(hand):
-    """The node's fast accessor returns exactly (bitwise) the StepOutput fields."""
+    """With ideal sensors the node's fast accessor returns exactly (bitwise) the StepOutput fields."""
     m = LeadScrewModel(ScrewParams.from_dict({'hand': hand}, base=load_preset('anti_backlash')),
                        dt=1e-3)
     for k in range(50):
         m.advance(0.3 * math.sin(0.2 * k) * m.params.max_torque)
         o = m.output()
         want = (o.screw_angle, o.nut_position, o.screw_velocity, o.nut_velocity,
-                o.motor_torque, o.axial_force, o.thread_torque)
+                o.motor_torque, o.axial_force)
         got = m.joint_values()
         assert all(type(g) is float for g in got)
         assert [np.float64(g).tobytes() for g in got] == [np.float64(w).tobytes() for w in want]

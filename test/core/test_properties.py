@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from leadscrew_sim import LeadScrewModel, ParameterError, ScrewParams
+from leadscrew_sim.core.fields import public_name
 from leadscrew_sim.core.packing import stiffest_mode
 
 settings.register_profile('ci', derandomize=True)
@@ -114,4 +115,5 @@ def test_random_invalid_values_are_refused_with_the_name(name, kind):
         value = 'not-a-number'
     with pytest.raises(ParameterError) as err:
         ScrewParams.from_dict({name: value})
-    assert err.value.name == name and f"'{name}'" in str(err.value)
+    public = public_name(name)      # fault_jam is the parameter fault.jam
+    assert err.value.name == public and f"'{public}'" in str(err.value)

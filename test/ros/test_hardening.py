@@ -359,7 +359,7 @@ def test_parameter_abuse_is_refused_and_changes_nothing(run_exe, ros):
         return {n: (v.type, param_value(v)) for n, v in zip(names, r.values)}
 
     before = get_all()
-    assert set(ScrewParams.field_info()) <= set(names)
+    assert set(ScrewParams.parameter_names()) <= set(names)
     tried = refused = accepted = 0
     read_only = sorted(n for n in names if descs[n].read_only)
     for name in names:

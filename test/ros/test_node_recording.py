@@ -42,6 +42,7 @@ TYPES = {
     '/joint_states': 'sensor_msgs/msg/JointState',
     '/nut_position': 'std_msgs/msg/Float64',
     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
+    '/sim/joint_states': 'sensor_msgs/msg/JointState',
     '/velocity_command': 'std_msgs/msg/Float64',
     '/position_command': 'std_msgs/msg/Float64',
     '/limit_switch/min': 'std_msgs/msg/Bool',
