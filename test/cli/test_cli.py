@@ -154,7 +154,8 @@ def test_simulate_file_layout(sim_file):
     assert params['clock_mode'] == 'simulate' and params['preset'] == 'tr12x3'
     assert params['update_rate'] == '1000.0' and params['dt_ns'] == '1000000'
     assert 'rosbag2' in meta
-    for topic in ('/joint_states', '/nut_position', '/thread_force', '/torque_command', '/tf'):
+    for topic in ('/joint_states', '/nut_position', '/thread_force', '/sim/joint_states',
+                  '/torque_command', '/tf'):
         assert len(by_topic[topic]) == 1000, topic
     assert len(by_topic['/robot_description']) == len(by_topic['/tf_static']) == 1
     js = by_topic['/joint_states']
@@ -174,7 +175,7 @@ def test_simulate_file_layout(sim_file):
         for conn, _t, raw in r.messages():
             r.deserialize(raw, conn.msgtype)
             n += 1
-    assert n == 5002
+    assert n == 6002      # 6 per tick (command, 4 states, /tf) plus the 2 description messages
 
 
 # ---------------------------------------------------------------------------
