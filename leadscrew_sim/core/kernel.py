@@ -153,9 +153,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         position [m], 1 / rt [rad/m];  l_min, l_max, x_home, hyst: switch positions and
         hysteresis [m]
       sensors: eq0, ew0, xs0, vs0, ns0: the sensor slots at the step's start;
-        beta: velocity filter gain per sample;  t_scale: motor torque
-        scale;  jam_on, jam_x, jam_side: the jam, its position [m] and side (1
-        blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N] and penetration
+        beta: velocity filter gain per sample;  ideal_fb: both sensors ideal and
+        live (no sampling: the drive reads the state, S_EQ .. S_VS get the truth);
+        t_scale: motor torque scale;  jam_on, jam_x, jam_side: the jam, its position
+        [m] and side (1 blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N] and penetration
         [m];  enc_live: the encoder is ideal and not frozen;  eq, ew: encoder
         angle [rad] and rate [rad/s] at the end of the step
       c_mode, c_q, c_w, c_t: the held command (mode, q_ref [rad], w_cmd [rad/s],
@@ -289,6 +290,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     t_scale = P[P_TSCALE]
     jam_on = P[P_JAM] > 0.5
     jam_x = P[P_JAMX]
+    # ideal live sensors read the truth: no sampling in the substeps, the feedback is the state
+    ideal_fb = (P[P_EIDEAL] > 0.5 and P[P_EFRZ] <= 0.5 and P[P_SIDEAL] > 0.5
+                and P[P_SFRZ] <= 0.5)
     n_steps = torques.shape[0] if ncmd == 0 else min(torques.shape[0], ncmd)
     for i in range(n_steps):
         fext = P[P_FEXT] + forces[i]
@@ -388,8 +392,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             if drive_on:
                 if d_phase == 0:
                     # drive feedback: the sensors' sample at the end of the last period
-                    q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
-                    w_fb = S[S_EW]
+                    if ideal_fb:
+                        q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
+                        w_fb = wm
+                    else:
+                        q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
+                        w_fb = S[S_EW]
                     if d_fault != FAULT_NONE:
                         d_tout = 0.0
                         d_int = 0.0
@@ -704,7 +712,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             d_phase += 1
             if d_phase >= d_m:   # the end of a drive period: sample the sensors
                 d_phase = 0
-                sample(P, S, qm, wm, xa, va, td, beta, False)
+                if not ideal_fb:
+                    sample(P, S, qm, wm, xa, va, td, beta, False)
         win += 0.5 * h * sum_in
         wext += 0.5 * h * fext * sum_ext
         edamp += 0.5 * h * sum_damp
@@ -781,6 +790,11 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         S[S_SWMAX] = 1.0 if sw_max else 0.0
         S[S_HOME] = 1.0 if home else 0.0
         S[S_JAM] = jam_side
+        if ideal_fb:   # the readings of ideal sensors: the truth at the step's end
+            S[S_EQ] = qm
+            S[S_EW] = wm
+            S[S_XS] = xa
+            S[S_VS] = va
         # outputs of the last substep
         out[O_NLA] = flo_a / cl
         out[O_NUA] = fup_a / cl
