@@ -229,7 +229,9 @@ class Resim:
             new = new_states.get(k)
             if new is None:
                 continue
-            js, x, wr = new
+            js, x, wr, truth = new
+            if 'sim/joint_states' in rec and truth is not None:
+                self._compare_truth(acc, rec['sim/joint_states'], truth)
             if 'joint_states' in rec and js is not None:
                 _s, _n, pos, vel, eff = C.decode_joint_state(rec['joint_states'])
                 old = list(pos[:2]) + list(vel[:2]) + list(eff[:2])
@@ -243,10 +245,22 @@ class Resim:
                 _acc(acc[fields[8]], t[0], wr[1])
         rows = []
         self.bit_differences = sum(a[3] for a in acc.values())
-        for (topic, field), (mx, sq, n, _bits) in acc.items():
+        fields += [f for f in acc if f not in fields]      # sim/joint_states, as recorded
+        for topic, field in fields:
+            mx, sq, n, _bits = acc[topic, field]
             rows.append((self.topics.get(topic) or topic, field, mx,
                          math.sqrt(sq / n) if n else float('nan'), n))
         return rows
+
+    @staticmethod
+    def _compare_truth(acc, recorded, new):
+        """Accumulate the differences of a recorded and a new sim/joint_states message."""
+        _s, names, *old = C.decode_joint_state(recorded)
+        _s, _names, *now = C.decode_joint_state(new)
+        for q, a, b in zip(('position', 'velocity', 'effort'), old, now):
+            for name, va, vb in zip(names, a, b):
+                _acc(acc.setdefault(('sim/joint_states', f'{q}[{name}]'), [0.0, 0.0, 0, 0]),
+                     va, vb)
 
     def joint_labels(self):
         """Return the two joint names."""
@@ -260,22 +274,22 @@ def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0):
     ``delivered``: the [(stamp, sensor values)] due at ``now`` [ns]; ``truth``: the
     truth values of a sampled tick (None otherwise). ``new_states`` gets, per
     step index of ``now`` (the log time, as the recorded states are indexed),
-    [joint_states values, nut position, thread force values], None where the
-    tick published none.
+    [joint_states values, nut position, thread force values, sim/joint_states
+    bytes], None where the tick published none.
     """
     values = None
     for stamp, values in delivered:
         if writer is not None:
             for topic, data in enc.sensor(stamp, values):
                 writer.write(writer.ids[topic], data, now)
-        new_states.setdefault((now - t0) // dt_ns, [None, None, None])[:2] = \
-            values, values[1]
+        new_states.setdefault((now - t0) // dt_ns, [None] * 4)[:2] = values, values[1]
     if truth is not None:
+        messages = enc.truth(now, truth)
         if writer is not None:
-            for topic, data in enc.truth(now, truth):
+            for topic, data in messages:
                 writer.write(writer.ids[topic], data, now)
-        new_states.setdefault((now - t0) // dt_ns, [None, None, None])[2] = \
-            (truth[-1], truth[9])
+        new_states.setdefault((now - t0) // dt_ns, [None] * 4)[2:] = \
+            (truth[-1], truth[9]), dict(messages)['sim/joint_states']
     if values is not None and writer is not None:
         writer.write_tf(stamp, values[0], values[1], now)
 

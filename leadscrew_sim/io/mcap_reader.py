@@ -8,6 +8,7 @@ from mcap.reader import make_reader
 
 from .mcap_writer import MAGIC
 from .run_file import PARAMS_RECORD
+from .topics import TOPICS
 
 __all__ = ['Recording', 'RecordingError']
 
@@ -100,8 +101,15 @@ class Recording:
                                  f'"{PARAMS_RECORD}" metadata record)')
 
     def role_topic(self, rel):
-        """Return the recorded topic whose last name component is ``rel`` (or None)."""
+        """
+        Return the recorded topic that is relative topic ``rel`` in some namespace (or None).
+
+        ``joint_states`` is not ``sim/joint_states``: a topic that ends with a
+        longer name of the topic table ending in ``rel`` belongs to that one.
+        """
+        longer = [k for k in TOPICS if k != rel and k.endswith('/' + rel)]
         for topic in self.topic_types:
-            if topic.rsplit('/', 1)[-1] == rel:
+            if (topic == rel or topic.endswith('/' + rel)) and not any(
+                    topic == '/' + k or topic.endswith('/' + k) for k in longer):
                 return topic
         return None
