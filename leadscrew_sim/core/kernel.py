@@ -156,9 +156,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         beta: velocity filter gain per sample;  ideal_fb: both sensors ideal and
         live (no sampling: the drive reads the state, S_EQ .. S_VS get the truth);
         t_scale: motor torque scale;  jam_on, jam_x, jam_side: the jam, its position
-        [m] and side (1 blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N] and penetration
-        [m];  enc_live: the encoder is ideal and not frozen;  eq, ew: encoder
-        angle [rad] and rate [rad/s] at the end of the step
+        [m] and side (1 blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N]
+        and penetration [m];  count_phase: the phase is counted substep by substep
+        (the drive runs or a sensor is sampled);  enc_live: the encoder is ideal
+        and not frozen;  eq, ew: encoder angle [rad] and rate [rad/s] at the step's end
       c_mode, c_q, c_w, c_t: the held command (mode, q_ref [rad], w_cmd [rad/s],
         t_cmd [N m]);  d_mode: active mode;  d_qref: active target [rad];  d_int:
         integral I [rad];  d_tout: held drive torque command [N m];  d_phase: substeps
@@ -347,6 +348,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         sw_min = S[S_SWMIN] > 0.5
         sw_max = S[S_SWMAX] > 0.5
         drive_on = d_mode != MODE_TORQUE
+        count_phase = drive_on or not ideal_fb   # else the phase advances once, after the step
         # bounds of the velocity reference: the velocity limit, and 0 toward a tripped
         # switch (rt > 0: w_ref < 0 moves the nut toward -x); one clip applies both
         w_lo = 0.0 if sw_min else -vmax
@@ -472,16 +474,11 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 f_a -= f_stop_hi
             f_jam = 0.0
             pen_jam = 0.0
-            if jam_side > 0.0:
-                pen_jam = xa - jam_x
+            if jam_side != 0.0:   # penetration past the jam, on its side; force against it
+                pen_jam = jam_side * (xa - jam_x)
                 if pen_jam > 0.0:
-                    f_jam = max(0.0, kes * pen_jam + ces * va)
-                    f_a -= f_jam
-            elif jam_side < 0.0:
-                pen_jam = jam_x - xa
-                if pen_jam > 0.0:
-                    f_jam = max(0.0, kes * pen_jam - ces * va)
-                    f_a += f_jam
+                    f_jam = max(0.0, kes * pen_jam + ces * jam_side * va)
+                    f_a -= jam_side * f_jam
             # thread contact of nut A
             flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq,
                                                              half_b, k, c)
@@ -709,11 +706,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             xb = xb_new
             te = te_new
             t += h
-            d_phase += 1
-            if d_phase >= d_m:   # the end of a drive period: sample the sensors
-                d_phase = 0
-                if not ideal_fb:
-                    sample(P, S, qm, wm, xa, va, td, beta, False)
+            if count_phase:
+                d_phase += 1
+                if d_phase >= d_m:   # the end of a drive period: sample the sensors
+                    d_phase = 0
+                    if not ideal_fb:
+                        sample(P, S, qm, wm, xa, va, td, beta, False)
         win += 0.5 * h * sum_in
         wext += 0.5 * h * fext * sum_ext
         edamp += 0.5 * h * sum_damp
@@ -756,6 +754,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         S[S_MODE0 + 2] = mode_c
         S[S_MODE0 + 3] = mode_g
         S[S_NSEARCH] = nsearch
+        if not count_phase:
+            d_phase = (d_phase + nsub) % d_m
         # limit and home switches from the true nut position at the end of the step (with
         # hysteresis); they act on the next step
         if sw_min:

@@ -293,12 +293,24 @@ def recorder_child():
     last = 0.0
 
     def report(final=False):
+        nonlocal out
+        if out is None:
+            return
         st = dict(path=str(session.current_path or '') if session else '',
                   bytes=session.bytes_written if session else 0,
                   messages=session.messages_written if session else 0,
                   error=error or (session.error if session else None), final=final)
-        out.write(json.dumps(st) + '\n')
-        out.flush()
+        try:
+            out.write(json.dumps(st) + '\n')
+            out.flush()
+        except OSError:
+            # The node is gone (a killed node closes the status pipe): stop reporting,
+            # point stdout at /dev/null so the exit flush cannot fail either, and go
+            # on writing the file until the frame pipe ends.
+            out = None
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
 
     buf = bytearray()
     while True:

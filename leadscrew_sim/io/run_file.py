@@ -45,7 +45,12 @@ DESCRIPTION_TOPICS = {
 
 #: The run settings ``simulate`` records: the node's defaults, clock mode 'simulate' and
 #: command_timeout 0 (a command comes every tick).
-SIMULATE_SETTINGS = dict(RunSettings(command_timeout=0.0).to_dict(), clock_mode='simulate')
+#: The run settings that describe a run (how resim replays it); the node-only ones (the
+#: recording's folder and limits, stats_file, publish_tf ...) stay out of a simulate file.
+RUN_DESCRIPTION = ('update_rate', 'joint_prefix', 'joint_command_mode', 'command_timeout',
+                   'publish_decimation')
+SIMULATE_SETTINGS = dict({k: v for k, v in RunSettings(command_timeout=0.0).to_dict().items()
+                          if k in RUN_DESCRIPTION}, clock_mode='simulate')
 
 _RUN_FIELDS = {f.name: f for f in dataclasses.fields(RunSettings)}
 
