@@ -39,6 +39,7 @@ def read_schedule(path, params, dt_ns):
     names = set(ScrewParams.names())
     steps = {}
     last_t = -math.inf
+    first = True                                    # the first line with content
     with fh:
         for lineno, line in enumerate(fh, 1):
             text = line.split('#', 1)[0].strip()
@@ -46,10 +47,11 @@ def read_schedule(path, params, dt_ns):
                 continue
             cells = [c.strip() for c in text.split(',')]
             where = f'--faults {path}, line {lineno}'
+            header, first = first, False
             try:
                 t = float(cells[0])
             except ValueError:
-                if lineno == 1 or not steps:
+                if header:
                     continue                        # a header line
                 raise CliError(f'{where}: expected "time,parameter,value", got '
                                f'{text[:60]!r}') from None

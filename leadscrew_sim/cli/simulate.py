@@ -90,6 +90,10 @@ def run(args):
         torque_fn, torque_desc = drive[0], drive[2]
     force_fn, force_desc = make_force_source(args)
     schedule = read_schedule(args.faults, params, dt_ns) if args.faults else []
+    late = [k for k, _changes in schedule if k >= n_steps]
+    if late:
+        print(f'leadscrew_sim: warning: --faults {args.faults}: {len(late)} change(s) at or '
+              f'after the end of the run ({args.duration:g} s) have no effect', file=sys.stderr)
     if schedule and schedule[0][0] == 0:   # changes at t = 0 are the run's parameters
         params = ScrewParams.from_dict(schedule.pop(0)[1], base=params)
     model = LeadScrewModel(params, dt=dt_ns / NS)
@@ -204,6 +208,13 @@ def _through_hold(hold, torques, ks, dt_ns, previous):
     return applied
 
 
+def _count(hold, torques, ks, dt_ns):
+    """Count commands that need no loss or delay, as received, and hold the last one."""
+    if len(torques):
+        hold.received += len(torques) - 1          # the drop counter counts every command
+        hold.torque_command(torques[-1], ks[-1] * dt_ns)
+
+
 def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
     """Run a block in one compiled call; return the torques and the run's columns."""
     dt = dt_ns / NS
@@ -213,6 +224,8 @@ def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
     if hold.delay or hold.drop_rate:
         applied = _through_hold(hold, torques, ks, dt_ns, model.state[L.S_CT] *
                                 model.params.hand_sign + 0.0)
+    else:
+        _count(hold, torques, ks, dt_ns)
     try:
         r = model.run(applied, forces)
     except FloatingPointError as exc:
@@ -233,7 +246,11 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
         tq = float(torque_fn(k, k * dt, x, vm))
         _check_finite([tq], [k], dt)
         torques.append(tq)
-        applied = _through_hold(hold, [tq], [k], dt_ns, applied)[0] if lossy else tq
+        if lossy:
+            applied = _through_hold(hold, [tq], [k], dt_ns, applied)[0]
+        else:
+            applied = tq
+            _count(hold, [tq], [k], dt_ns)
         try:
             model.advance(applied, None, forces[i])
         except FloatingPointError as exc:

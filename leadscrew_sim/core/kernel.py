@@ -35,7 +35,7 @@ from .drive import (
 )
 from .friction import _thread_limit, _thread_limits, friction_constants
 from .lcp import _box1, _box2, _friction_lcp, _solve2, _solve_free
-from .sensors import sample
+from .sensors import readings, sample
 from .layout import (
     IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL,
     MAXE, NO, N_CMD,
@@ -159,7 +159,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         [m] and side (1 blocks +x, -1 blocks -x);  f_jam, pen_jam: its force [N]
         and penetration [m];  count_phase: the phase is counted substep by substep
         (the drive runs or a sensor is sampled);  enc_live: the encoder is ideal
-        and not frozen;  eq, ew: encoder angle [rad] and rate [rad/s] at the step's end
+        and not frozen;  eq_r, xs_r: encoder [rad] and scale [m] readings at the
+        step's end;  eq, ew: encoder angle [rad] and rate [rad/s] reported
       c_mode, c_q, c_w, c_t: the held command (mode, q_ref [rad], w_cmd [rad/s],
         t_cmd [N m]);  d_mode: active mode;  d_qref: active target [rad];  d_int:
         integral I [rad];  d_tout: held drive torque command [N m];  d_phase: substeps
@@ -824,7 +825,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         out[O_DWREF] = d_wref if drive_on else 0.0
         # what the sensors report: an ideal live encoder the true screw angle and rate
         enc_live = P[P_EIDEAL] > 0.5 and P[P_EFRZ] <= 0.5
-        eq = qm if enc_live else S[S_EQ]
+        if d_phase != 0 and not ideal_fb:   # no drive sample at the step's end: read now
+            eq_r, xs_r = readings(P, S, qm, xa)
+        else:
+            eq_r = S[S_EQ]
+            xs_r = S[S_XS]
+        eq = qm if enc_live else eq_r
         ew = wm if enc_live else S[S_EW]
         out[O_JQ] = q if enc_live else eq
         out[O_JW] = dq if enc_live else ew
@@ -835,7 +841,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             out[O_JX] = xa
             out[O_JV] = va
         else:
-            out[O_JX] = S[S_XS]
+            out[O_JX] = xs_r
             out[O_JV] = S[S_VS]
         for j in range(REC_STATE):
             rec[i, j] = S[j]

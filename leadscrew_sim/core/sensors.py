@@ -3,9 +3,11 @@ The axis's sensors (physics.md section 11): motor encoder, linear scale and thei
 
 The kernel samples both sensors at the end of every drive period (every
 ``m`` substeps, :func:`.drive.update_period`), in the drive's loop and in
-torque mode alike; the drive's next update reads that sample, and the
-reported joint values of a step are the last sample of the step (its end,
-when the drive rate is a whole multiple of the update rate).
+torque mode alike; the drive's next update reads that sample. A step
+reports the readings at its end: the drive's sample when a drive period
+ends with the step (the drive rate a whole multiple of the update rate),
+else :func:`readings` of the state at the step's end; the velocities are
+always the drive's last estimates.
 
 A reading is the true value plus the bias plus seeded Gaussian noise,
 quantised to whole counts: ``floor((q + bias + noise) N / 2 pi) 2 pi / N``
@@ -32,8 +34,9 @@ import math
 from ._jit import kernel_jit
 from . import layout as L
 
-#: Streams of :func:`uniform`: the sensor noise, dropped state messages, dropped commands.
-STREAM_NOISE, STREAM_STATE_DROP, STREAM_COMMAND_DROP = 1, 2, 3
+#: Streams of :func:`uniform`: the sensor noise of the drive's samples, dropped state
+#: messages, dropped commands, the noise of the readings a step reports between samples.
+STREAM_NOISE, STREAM_STATE_DROP, STREAM_COMMAND_DROP, STREAM_REPORT = 1, 2, 3, 4
 
 _M32 = 0xFFFFFFFF
 _TWO_PI = 2.0 * math.pi
@@ -86,26 +89,77 @@ def uniform(seed, stream, index):
 
 
 @kernel_jit
-def normal_pair(seed, index):
+def normal_pair(seed, stream, index):
     """
     Return the two independent standard normal deviates of sensor sample ``index``.
 
-    Box-Muller of the uniforms of counters 2 index and 2 index + 1 of the
-    noise stream; the first goes to the encoder, the second to the scale.
+    Box-Muller of the uniforms of counters 2 index and 2 index + 1 of a
+    stream; the first goes to the encoder, the second to the scale.
 
     Parameters
     ----------
     seed : int
         The seed, 0 <= seed < 2^31.
+    stream : int
+        ``STREAM_NOISE`` (the drive's samples) or ``STREAM_REPORT``.
     index : int
         The sample counter, 0 <= index < 2^52.
 
     """
-    key = _key(seed, STREAM_NOISE)
+    key = _key(seed, stream)
     u1 = (_word(key, 2 * index) + 0.5) * (1.0 / 4294967296.0)
     u2 = (_word(key, 2 * index + 1) + 0.5) * (1.0 / 4294967296.0)
     r = math.sqrt(-2.0 * math.log(u1))
     return r * math.cos(_TWO_PI * u2), r * math.sin(_TWO_PI * u2)
+
+
+@kernel_jit
+def _encoder(P, q, z):
+    """Return the encoder reading of the true motor angle q [rad] with noise deviate z."""
+    r = q + P[L.P_EBIAS] + P[L.P_ENOISE] * z
+    cpr = P[L.P_ECPR]
+    if cpr > 0.0:
+        r = math.floor(r * (cpr / _TWO_PI)) * (_TWO_PI / cpr)
+    return r
+
+
+@kernel_jit
+def _scale(P, x, z):
+    """Return the linear scale reading of the true nut position x [m] with noise deviate z."""
+    r = x + P[L.P_SBIAS] + P[L.P_SNOISE] * z
+    res = P[L.P_SRES]
+    if res > 0.0:
+        r = math.floor(r / res) * res
+    return r
+
+
+@kernel_jit
+def readings(P, S, qm, xa):
+    """
+    Return the (encoder [rad], scale [m]) readings of the state now, between two samples.
+
+    What a step reports when it does not end on a drive sample: the readings
+    at its end, with the noise of the report stream (``STREAM_REPORT``, at the
+    counter of the next sample), so the drive's own samples are not disturbed.
+    A frozen sensor gives its held reading, an ideal one the truth.
+    """
+    z_enc = 0.0
+    z_sc = 0.0
+    if P[L.P_ENOISE] > 0.0 or P[L.P_SNOISE] > 0.0:
+        z_enc, z_sc = normal_pair(int(P[L.P_SEED]), STREAM_REPORT, int(S[L.S_NSAMP]))
+    if P[L.P_EFRZ] > 0.5:
+        q = S[L.S_EQ]
+    elif P[L.P_EIDEAL] > 0.5:
+        q = qm
+    else:
+        q = _encoder(P, qm, z_enc)
+    if P[L.P_SFRZ] > 0.5:
+        x = S[L.S_XS]
+    elif P[L.P_SIDEAL] > 0.5:
+        x = xa
+    else:
+        x = _scale(P, xa, z_sc)
+    return q, x
 
 
 @kernel_jit
@@ -123,7 +177,7 @@ def sample(P, S, qm, wm, xa, va, td, beta, first):
     z_enc = 0.0
     z_sc = 0.0
     if P[L.P_ENOISE] > 0.0 or P[L.P_SNOISE] > 0.0:
-        z_enc, z_sc = normal_pair(int(P[L.P_SEED]), n)
+        z_enc, z_sc = normal_pair(int(P[L.P_SEED]), STREAM_NOISE, n)
     # motor encoder
     if P[L.P_EFRZ] > 0.5 and not first:
         S[L.S_EW] = 0.0
@@ -131,10 +185,7 @@ def sample(P, S, qm, wm, xa, va, td, beta, first):
         S[L.S_EQ] = qm
         S[L.S_EW] = wm
     else:
-        r = qm + P[L.P_EBIAS] + P[L.P_ENOISE] * z_enc
-        cpr = P[L.P_ECPR]
-        if cpr > 0.0:
-            r = math.floor(r * (cpr / _TWO_PI)) * (_TWO_PI / cpr)
+        r = _encoder(P, qm, z_enc)
         if first:
             S[L.S_EW] = 0.0
         else:
@@ -147,10 +198,7 @@ def sample(P, S, qm, wm, xa, va, td, beta, first):
         S[L.S_XS] = xa
         S[L.S_VS] = va
     else:
-        x = xa + P[L.P_SBIAS] + P[L.P_SNOISE] * z_sc
-        res = P[L.P_SRES]
-        if res > 0.0:
-            x = math.floor(x / res) * res
+        x = _scale(P, xa, z_sc)
         if first:
             S[L.S_VS] = 0.0
         else:
