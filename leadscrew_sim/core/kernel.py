@@ -50,7 +50,8 @@ from .layout import (
     REC_ROW, REC_STATE,
     S_CMODE, S_CQ, S_CT, S_CW, S_DFAULT, S_DFERR, S_DINT, S_DMODE, S_DPHASE, S_DQ, S_DQREF,
     S_DQS, S_DTLIM, S_DTOUT, S_DWQS, S_DWREF, S_EDAMP, S_EFRIC, S_EQ, S_EW, S_FAPREV, S_HOME,
-    S_JAM, S_MODE0, S_NSAMP, S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA, S_VB, S_VS,
+    S_JAM, S_MODE0, S_NREP, S_NSAMP, S_NSEARCH, S_Q, S_QM, S_SWMAX, S_SWMIN, S_T, S_TE, S_VA,
+    S_VB, S_VS,
     S_WEXT, S_WIN, S_WM, S_XA, S_XB, S_XS,
     WK_A, WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_LCP, WK_LIM, WK_NIO, WK_P, WK_R, WK_REC, WK_V0,
     WK_W,
@@ -152,7 +153,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         from the linear scale;  q_ref0, x_ref0, irt: its reference angle [rad] and nut
         position [m], 1 / rt [rad/m];  l_min, l_max, x_home, hyst: switch positions and
         hysteresis [m]
-      sensors: eq0, ew0, xs0, vs0, ns0: the sensor slots at the step's start;
+      sensors: eq0, ew0, xs0, vs0, ns0, nr0: the sensor slots at the step's start;
         beta: velocity filter gain per sample;  ideal_fb: both sensors ideal and
         live (no sampling: the drive reads the state, S_EQ .. S_VS get the truth);
         t_scale: motor torque scale;  jam_on, jam_x, jam_side: the jam, its position
@@ -322,6 +323,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         d_wref = S[S_DWREF]
         # the sensor slots the substeps write, restored if the step fails
         eq0, ew0, xs0, vs0, ns0 = S[S_EQ], S[S_EW], S[S_XS], S[S_VS], S[S_NSAMP]
+        nr0 = S[S_NREP]
         if P[P_FINJ] > 0.5 and d_fault == FAULT_NONE:   # an injected fault latches
             d_fault = FAULT_INJECTED
         jam_side = 0.0
@@ -439,6 +441,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                         if d_fault != FAULT_NONE:
                             t_drv = 0.0
                             d_int = 0.0
+                        # a tripped switch also cuts the torque toward it, as in torque
+                        # mode: the stop holds even when the feedback is wrong (frozen)
+                        if sw_min and t_drv < 0.0:
+                            t_drv = 0.0
+                        if sw_max and t_drv > 0.0:
+                            t_drv = 0.0
                         d_wref = w_ref
                         d_tout = t_drv
                     t_sat = d_tout
@@ -733,6 +741,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 and math.isfinite(wm) and math.isfinite(dq) and math.isfinite(va)
                 and math.isfinite(vb) and math.isfinite(te)):
             S[S_EQ], S[S_EW], S[S_XS], S[S_VS], S[S_NSAMP] = eq0, ew0, xs0, vs0, ns0
+            S[S_NREP] = nr0
             return i
         # write the state back once
         S[S_QM] = qm

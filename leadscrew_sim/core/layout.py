@@ -19,8 +19,8 @@ switches) and its outputs O_DMODE .. O_DWREF; a command row of step_held()
 and run_series is N_CMD floats (mode, q, w, torque), all in the q sense.
 
 The sensors (sensors.py) have their parameter slots P_ECPR .. P_SEED, the
-faults the kernel applies P_EFRZ .. P_FINJ, their state S_EQ .. S_JAM (the
-last readings and the noise counter) and the reported joint values O_JQ .. O_JV.
+faults the kernel applies P_EFRZ .. P_FINJ, their state S_EQ .. S_NREP (the
+last readings and the noise counters) and the reported joint values O_JQ .. O_JV.
 """
 
 # Parameter vector P (float64[NP]) ---------------------------------------------
@@ -138,7 +138,8 @@ S_XS = 40       # linear scale reading [m]
 S_VS = 41       # nut velocity from the scale (difference quotient, filtered) [m/s]
 S_NSAMP = 42    # sensor samples taken since reset: the index of the next noise pair [-]
 S_JAM = 43      # side the jam blocks: 1 motion toward +x, -1 toward -x, 0 no jam [-]
-NS = 44         # length of S
+S_NREP = 44     # readings reported between drive samples since reset: their noise index [-]
+NS = 45         # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]

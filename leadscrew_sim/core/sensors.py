@@ -139,14 +139,16 @@ def readings(P, S, qm, xa):
     Return the (encoder [rad], scale [m]) readings of the state now, between two samples.
 
     What a step reports when it does not end on a drive sample: the readings
-    at its end, with the noise of the report stream (``STREAM_REPORT``, at the
-    counter of the next sample), so the drive's own samples are not disturbed.
-    A frozen sensor gives its held reading, an ideal one the truth.
+    at its end, with noise of the report stream (``STREAM_REPORT``, counted by
+    S_NREP), so the drive's own samples are not disturbed. A frozen sensor
+    gives its held reading, an ideal one the truth.
     """
     z_enc = 0.0
     z_sc = 0.0
+    n = int(S[L.S_NREP])
+    S[L.S_NREP] = n + 1
     if P[L.P_ENOISE] > 0.0 or P[L.P_SNOISE] > 0.0:
-        z_enc, z_sc = normal_pair(int(P[L.P_SEED]), STREAM_REPORT, int(S[L.S_NSAMP]))
+        z_enc, z_sc = normal_pair(int(P[L.P_SEED]), STREAM_REPORT, n)
     if P[L.P_EFRZ] > 0.5:
         q = S[L.S_EQ]
     elif P[L.P_EIDEAL] > 0.5:

@@ -342,7 +342,7 @@ def test_invalid_parameters_are_refused_with_name(kw, name):
 
 @pytest.mark.parametrize('hand', ['right', 'left'])
 def test_joint_values_are_the_output_fields(hand):
-    """With ideal sensors the node's fast accessor returns exactly (bitwise) the StepOutput fields."""
+    """With ideal sensors the node's fast accessor gives the StepOutput fields bit for bit."""
     m = LeadScrewModel(ScrewParams.from_dict({'hand': hand}, base=load_preset('anti_backlash')),
                        dt=1e-3)
     for k in range(50):

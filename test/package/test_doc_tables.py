@@ -59,7 +59,8 @@ def row_names(output):
 
 
 def test_every_field_has_one_row():
-    assert row_names(gen.render([])) == list(ScrewParams.parameter_names()) + list(RunSettings.names())
+    assert row_names(gen.render([])) == (list(ScrewParams.parameter_names())
+                                         + list(RunSettings.names()))
     assert row_names(gen.render(['run'])) == list(RunSettings.names())
 
 

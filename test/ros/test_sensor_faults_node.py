@@ -404,7 +404,7 @@ def test_injected_drive_fault_latches_until_cleared_after_release(run_exe, ros):
 
 @pytest.mark.timeout(120)
 def test_faulted_lockstep_recording_resim_is_bit_identical(run_exe, ros, tmp_path):
-    """resim of a recording with noisy sensors, delays and run-time faults is bit-identical."""
+    """A recording with noisy sensors, delays and run-time faults re-simulates bit-identically."""
     n, delay = 600, 2
     ax = Axis(run_exe, ros, 'encoder_counts:=4096', 'encoder_noise:=2e-4',
               'scale_resolution:=1e-6', 'scale_noise:=3e-7', 'velocity_filter_time:=0.002',
