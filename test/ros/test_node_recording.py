@@ -235,8 +235,8 @@ def test_realtime_recording_read_back_by_mcap_and_rosbags(realtime_run):
     # The parameters record holds every physics parameter, with the preset's values.
     params = meta['leadscrew_sim_parameters']
     preset = load_preset('tr12x3')
-    for name in ScrewParams.field_info():
-        assert params[name] == str(getattr(preset, name)), name
+    for name, public in zip(ScrewParams.names(), ScrewParams.parameter_names()):
+        assert params[public] == str(getattr(preset, name)), public
     assert params['clock_mode'] == 'realtime' and params['dt_ns'] == str(MS)
     t0 = int(params['t0_ns'])
 
@@ -477,11 +477,11 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     print(r.stdout)
     rows, compared, overall = _resim_rows(r.stdout)
     assert compared == len(commands)
-    assert len(rows) == 9
+    assert len(rows) == 9 + 9      # 9 fields of the sensor topics, 9 of sim/joint_states
     assert all(mx == 0.0 and n == len(commands) for mx, n in rows.values()), rows
     assert overall == 0.0 and '(bit-identical)' in r.stdout
     # Independently of resim's own report: the states it wrote are the node's bytes.
-    for topic in ('/joint_states', '/nut_position', '/thread_force'):
+    for topic in ('/joint_states', '/nut_position', '/thread_force', '/sim/joint_states'):
         assert raw_messages(out, topic) == raw_messages(path, topic), topic
 
     r = cli_ok('resim', path, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap',
