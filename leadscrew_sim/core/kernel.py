@@ -393,330 +393,340 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         flo_a = fup_a = flo_b = fup_b = 0.0
         imp_a = imp_b = imp_c = imp_g = 0.0
         sum_in = sum_ext = sum_damp = sum_fric = 0.0   # energy sums of the step (see below)
-        for _ in range(nsub):
-            if drive_on:
-                if d_phase == 0:
-                    # drive feedback: the sensors' sample at the end of the last period
-                    if ideal_fb:
-                        q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
-                        w_fb = wm
+        sub = 0
+        while sub < nsub:
+            # one drive period at a time (the whole step when no phase is counted): the
+            # drive's update and the sensors' sample stay out of the inner substep loop
+            seg = nsub - sub
+            if count_phase and d_m - d_phase < seg:
+                seg = max(1, d_m - d_phase)
+            if drive_on and d_phase == 0:
+                # drive feedback: the sensors' sample at the end of the last period
+                if ideal_fb:
+                    q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
+                    w_fb = wm
+                else:
+                    q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
+                    w_fb = S[S_EW]
+                if d_fault != FAULT_NONE:
+                    d_tout = 0.0
+                    d_int = 0.0
+                    d_tlim = 0.0
+                    d_wref = 0.0
+                else:
+                    if d_mode == MODE_QUICKSTOP:
+                        if d_qs == 1:   # the ramp starts from the measured rate
+                            d_wqs = min(max(w_fb, -vmax), vmax)
+                            d_qs = 2
+                        if d_wqs > dw_qs:
+                            d_wqs -= dw_qs
+                        elif d_wqs < -dw_qs:
+                            d_wqs += dw_qs
+                        else:           # standstill: hold the position reached
+                            d_wqs = 0.0
+                            d_mode = MODE_POSITION
+                            d_qref = q_fb
+                        w_ref = d_wqs
+                    elif d_mode == MODE_POSITION:
+                        d_ferr = d_qref - q_fb
+                        w_ref = kp_d * d_ferr + w_ff
+                        if fel > 0.0 and abs(d_ferr) > fel:
+                            d_fault = FAULT_FOLLOWING_ERROR
                     else:
-                        q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
-                        w_fb = S[S_EW]
-                    if d_fault != FAULT_NONE:
-                        d_tout = 0.0
-                        d_int = 0.0
+                        w_ref = w_ff
+                    w_ref = min(max(w_ref, w_lo), w_hi)
+                    t_drv, t_u, d_int = velocity_loop(w_ref, w_fb, d_int, kv_d, ki_d, t_ff,
+                                                      tmax, td)
+                    if abs(t_u) >= tmax:
+                        d_tlim += td
+                        if tlt > 0.0 and d_tlim > tlt:
+                            d_fault = FAULT_TORQUE_LIMIT
+                    else:
                         d_tlim = 0.0
-                        d_wref = 0.0
-                    else:
-                        if d_mode == MODE_QUICKSTOP:
-                            if d_qs == 1:   # the ramp starts from the measured rate
-                                d_wqs = min(max(w_fb, -vmax), vmax)
-                                d_qs = 2
-                            if d_wqs > dw_qs:
-                                d_wqs -= dw_qs
-                            elif d_wqs < -dw_qs:
-                                d_wqs += dw_qs
-                            else:           # standstill: hold the position reached
-                                d_wqs = 0.0
-                                d_mode = MODE_POSITION
-                                d_qref = q_fb
-                            w_ref = d_wqs
-                        elif d_mode == MODE_POSITION:
-                            d_ferr = d_qref - q_fb
-                            w_ref = kp_d * d_ferr + w_ff
-                            if fel > 0.0 and abs(d_ferr) > fel:
-                                d_fault = FAULT_FOLLOWING_ERROR
-                        else:
-                            w_ref = w_ff
-                        w_ref = min(max(w_ref, w_lo), w_hi)
-                        t_drv, t_u, d_int = velocity_loop(w_ref, w_fb, d_int, kv_d, ki_d, t_ff,
-                                                          tmax, td)
-                        if abs(t_u) >= tmax:
-                            d_tlim += td
-                            if tlt > 0.0 and d_tlim > tlt:
-                                d_fault = FAULT_TORQUE_LIMIT
-                        else:
-                            d_tlim = 0.0
-                        if d_fault != FAULT_NONE:
-                            t_drv = 0.0
-                            d_int = 0.0
-                        # a tripped switch also cuts the torque toward it, as in torque
-                        # mode: the stop holds even when the feedback is wrong (frozen)
-                        if sw_min and t_drv < 0.0:
-                            t_drv = 0.0
-                        if sw_max and t_drv > 0.0:
-                            t_drv = 0.0
-                        d_wref = w_ref
-                        d_tout = t_drv
-                    t_sat = d_tout
-            te_new = te + alpha * (t_scale * t_sat - te)
-            f_m = 0.0
-            f_s = 0.0
-            f_a = 0.0
-            f_b = 0.0
-            # motor and coupling
-            if rigid:
-                f_s += te_new
-            else:
-                f_m += te_new
-                t_cspring = kc * (qm - q)
-                t_cdamp = cc * (wm - dq)
-                f_m -= t_cspring + t_cdamp
-                f_s += t_cspring + t_cdamp
-            # bearing and guide viscous, gravity, external force
-            f_s -= cs * dq
-            f_a -= cx * va
-            f_a += fext - ma * gs
-            if two_nuts:
-                f_b -= mb * gs
-            # end stops on nut A (unilateral, damper never pulls)
-            f_stop_lo = 0.0
-            f_stop_hi = 0.0
-            pen_stop_lo = xmin - xa
-            if pen_stop_lo > 0.0:
-                f_stop_lo = max(0.0, kes * pen_stop_lo - ces * va)
-                f_a += f_stop_lo
-            pen_stop_hi = xa - xmax
-            if pen_stop_hi > 0.0:
-                f_stop_hi = max(0.0, kes * pen_stop_hi + ces * va)
-                f_a -= f_stop_hi
-            f_jam = 0.0
-            pen_jam = 0.0
-            if jam_side != 0.0:   # penetration past the jam, on its side; force against it
-                pen_jam = jam_side * (xa - jam_x)
-                if pen_jam > 0.0:
-                    f_jam = max(0.0, kes * pen_jam + ces * jam_side * va)
-                    f_a -= jam_side * f_jam
-            # thread contact of nut A
-            flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq,
-                                                             half_b, k, c)
-            fn_a = flo_a - fup_a
-            f_a += fn_a
-            f_s -= rt * fn_a
-            flo_b = 0.0
-            fup_b = 0.0
-            pen_lo_b = 0.0
-            pen_up_b = 0.0
-            if two_nuts:
-                flo_b, fup_b, pen_lo_b, pen_up_b = _flank_forces(xb - rt * q, vb - rt * dq,
-                                                                 half_b, k, c)
-                fn_b = flo_b - fup_b
-                f_b += fn_b
-                f_s -= rt * fn_b
-                f_spring = f_pre + k_pre * (backlash - (xb - xa))
-                f_b += f_spring
-                f_a -= f_spring
-            # unconstrained velocity
-            wm0 = wm
-            dq0 = dq
-            va0 = va
-            vb0 = vb
-            if not rigid:
-                wm = wm + f_m * hmi_m
-            dq = dq + f_s * hmi_s
-            va = va + f_a * hmi_a
-            if two_nuts:
-                vb = vb + f_b * hmi_b
-            # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
-            load_a = flo_a + fup_a
-            load_b = flo_b + fup_b
-            vs_a = rc * dq0 + sl * va0
-            vs_b = rc * dq0 + sl * vb0
-            lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, fc, hcl, hcl_lo)
-            lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, fc, hcl, hcl_lo)
-            lim_c = h * (ts0 + mu_r_col * abs(faprev))
-            nact = int(lim_a != 0.0) + int(lim_b != 0.0) + int(lim_c > 0.0) + int(lim_g > 0.0)
-            imp_a = imp_b = imp_c = imp_g = 0.0   # impulses of thread A, thread B, bearing, guide
-            a_alone = nact == 1 and lim_a != 0.0
-            if a_alone:   # thread A alone, the common case, without the tables below
-                vfree_a = rc * dq + sl * va
-                searched = False
-                if lim_a < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                    imp_a = vfree_a * nrecip_w_aa
-                    if abs(imp_a) > lo_a * (1.0 + 1e-9):
-                        lim_a = _thread_limit(load_a, vs_a, fc, hcl)
-                        imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, 0)
+                    if d_fault != FAULT_NONE:
+                        t_drv = 0.0
+                        d_int = 0.0
+                    # a tripped switch also cuts the torque toward it, as in torque
+                    # mode: the stop holds even when the feedback is wrong (frozen)
+                    if sw_min and t_drv < 0.0:
+                        t_drv = 0.0
+                    if sw_max and t_drv > 0.0:
+                        t_drv = 0.0
+                    d_wref = w_ref
+                    d_tout = t_drv
+                t_sat = d_tout
+            for _ in range(seg):
+                te_new = te + alpha * (t_scale * t_sat - te)
+                f_m = 0.0
+                f_s = 0.0
+                f_a = 0.0
+                f_b = 0.0
+                # motor and coupling
+                if rigid:
+                    f_s += te_new
                 else:
-                    imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, mode_a)
-                if searched:
-                    nsearch += 1.0
-            elif 0 < nact <= 2:
-                # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
-                lim_of = (lim_a, lim_b, lim_c, lim_g)
-                lo_of = (lo_a, lo_b, lim_c, lim_g)
-                vfree_of = (rc * dq + sl * va, rc * dq + sl * vb, dq, va)
-                mode_of = (mode_a, mode_b, mode_c, mode_g)
-                e1 = 0 if lim_a != 0.0 else (1 if lim_b != 0.0 else (2 if lim_c > 0.0 else 3))
-                e2 = -1
-                if nact == 2:
-                    e2 = 3 if lim_g > 0.0 else (2 if lim_c > 0.0 else 1)
-                lim1 = lim_of[e1]
-                vfree1 = vfree_of[e1]
-                w1 = w_table[5 * e1]
-                searched = False
-                if nact == 1:
-                    if lim1 < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
-                        imp1 = -vfree1 / (w1 + (1e-12 * w1 + 1e-300))
-                        mode1 = 0
-                        if abs(imp1) > lo_of[e1] * (1.0 + 1e-9):
-                            lim1 = _thread_limit(load_a if e1 == 0 else load_b,
-                                                 vs_a if e1 == 0 else vs_b, fc, hcl)
-                            imp1, mode1, searched = _box1(w1, vfree1, lim1, 0)
-                    else:
-                        imp1, mode1, searched = _box1(w1, vfree1, lim1, mode_of[e1])
-                    imp2 = 0.0
-                    mode2 = 0
-                else:
-                    lim2 = lim_of[e2]
-                    vfree2 = vfree_of[e2]
-                    w2 = w_table[5 * e2]
-                    w12 = w_table[4 * e1 + e2]
-                    ok = False
-                    if (lim1 < 0.0 or lim2 < 0.0) and mode_of[e1] == 0 and mode_of[e2] == 0:
-                        imp1, imp2, ok = _solve2(w1, w12, w2, vfree1, vfree2,
-                                                 lo_of[e1], lo_of[e2], 0, 0)
-                        mode1 = 0
-                        mode2 = 0
-                    if not ok:
-                        if lim1 < 0.0:
-                            lim1 = _thread_limit(load_a if e1 == 0 else load_b,
-                                                 vs_a if e1 == 0 else vs_b, fc, hcl)
-                        if lim2 < 0.0:
-                            lim2 = _thread_limit(load_a if e2 == 0 else load_b,
-                                                 vs_a if e2 == 0 else vs_b, fc, hcl)
-                        imp1, imp2, mode1, mode2, searched = _box2(
-                            w1, w12, w2, vfree1, vfree2, lim1, lim2, mode_of[e1], mode_of[e2])
-                if searched:
-                    nsearch += 1.0
-                imp_a = imp1 if e1 == 0 else 0.0
-                imp_b = imp1 if e1 == 1 else (imp2 if e2 == 1 else 0.0)
-                imp_c = imp1 if e1 == 2 else (imp2 if e2 == 2 else 0.0)
-                imp_g = imp1 if e1 == 3 else (imp2 if e2 == 3 else 0.0)
-                mode_a = mode1 if e1 == 0 else mode_a
-                mode_b = mode1 if e1 == 1 else (mode2 if e2 == 1 else mode_b)
-                mode_c = mode1 if e1 == 2 else (mode2 if e2 == 2 else mode_c)
-                mode_g = mode1 if e1 == 3 else (mode2 if e2 == 3 else mode_g)
-            elif nact > 2:   # the general box LCP on the workspace arrays
-                if lim_a < 0.0:
-                    lim_a = _thread_limit(load_a, vs_a, fc, hcl)
-                if lim_b < 0.0:
-                    lim_b = _thread_limit(load_b, vs_b, fc, hcl)
-                W = wk[WK_W:WK_V0].reshape((MAXE, MAXE))
-                v0 = wk[WK_V0:WK_LIM]
-                lim = wk[WK_LIM:WK_P]
-                p = wk[WK_P:WK_A]
-                A = wk[WK_A:WK_R].reshape((MAXE, MAXE))
-                r = wk[WK_R:WK_LCP]
-                mode = iwk[IWK_MODE:IWK_EID]
-                eid = iwk[IWK_EID:IWK_IDX]
-                idx = iwk[IWK_IDX:IWK_TRIAL]
-                trial = iwk[IWK_TRIAL:WK_INT]
-                nact = 0
-                for e, lim_e in ((0, lim_a), (1, lim_b), (2, lim_c), (3, lim_g)):
-                    if lim_e > 0.0:
-                        eid[nact] = e
-                        lim[nact] = lim_e
-                        nact += 1
-                for a in range(nact):
-                    ea = eid[a]
-                    if ea == 0:
-                        mode[a] = mode_a
-                        v0[a] = rc * dq + sl * va
-                    elif ea == 1:
-                        mode[a] = mode_b
-                        v0[a] = rc * dq + sl * vb
-                    elif ea == 2:
-                        mode[a] = mode_c
-                        v0[a] = dq
-                    else:
-                        mode[a] = mode_g
-                        v0[a] = va
-                    for b in range(nact):
-                        W[a, b] = w_table[4 * ea + eid[b]]
-                if not _solve_free(W, v0, lim, mode, nact, p, A, r, idx):
-                    nsearch += 1.0
-                    _friction_lcp(W, v0, lim, mode, nact, p, A, r, idx, trial)
-                for a in range(nact):
-                    ea = eid[a]
-                    if ea == 0:
-                        mode_a = mode[a]
-                        imp_a = p[a]
-                    elif ea == 1:
-                        mode_b = mode[a]
-                        imp_b = p[a]
-                    elif ea == 2:
-                        mode_c = mode[a]
-                        imp_c = p[a]
-                    else:
-                        mode_g = mode[a]
-                        imp_g = p[a]
-            if a_alone:
-                dq += imp_a * w_ac
-                va += imp_a * w_ag
-            elif nact > 0:   # element by element, in element order (adding 0 changes nothing)
-                dq += rc * imp_a * mi_s
-                va += sl * imp_a * mi_a
-                dq += rc * imp_b * mi_s
-                vb += sl * imp_b * mi_b
-                dq += imp_c * mi_s
-                va += imp_g * mi_a
-            if rigid:
-                wm = dq
-            if not two_nuts:
-                vb = va
-            # positions (symplectic Euler)
-            qm_new = qm + h * wm
-            q_new = q + h * dq
-            xa_new = xa + h * va
-            xb_new = xb + h * vb
-            # energy bookkeeping with the mid-step velocities (start + end) / 2, summed over
-            # the step and scaled once at its end
-            wm_sum = wm0 + wm
-            dq_sum = dq0 + dq
-            va_sum = va0 + va
-            vb_sum = vb0 + vb
-            sum_in += te_new * (dq_sum if rigid else wm_sum)
-            sum_ext += va_sum
-            damp_pow = cs * dq0 * dq_sum + cx * va0 * va_sum
-            if not rigid:
-                damp_pow += cc * (wm0 - dq0) * (wm_sum - dq_sum)
-            gap_sum_a = va_sum - rt * dq_sum
-            if pen_lo_a > 0.0:
-                damp_pow -= (flo_a - k * pen_lo_a) * gap_sum_a
-            if pen_up_a > 0.0:
-                damp_pow += (fup_a - k * pen_up_a) * gap_sum_a
-            if pen_stop_lo > 0.0:
-                damp_pow -= (f_stop_lo - kes * pen_stop_lo) * va_sum
-            if pen_stop_hi > 0.0:
-                damp_pow += (f_stop_hi - kes * pen_stop_hi) * va_sum
-            if pen_jam > 0.0:
-                damp_pow += jam_side * (f_jam - kes * pen_jam) * va_sum
-            if two_nuts:
-                gap_sum_b = vb_sum - rt * dq_sum
-                if pen_lo_b > 0.0:
-                    damp_pow -= (flo_b - k * pen_lo_b) * gap_sum_b
-                if pen_up_b > 0.0:
-                    damp_pow += (fup_b - k * pen_up_b) * gap_sum_b
-            sum_damp += damp_pow
-            if a_alone:
-                sum_fric += imp_a * (rc * dq_sum + sl * va_sum)
-            elif nact > 0:
-                sum_fric += (imp_a * (rc * dq_sum + sl * va_sum)
-                             + imp_b * (rc * dq_sum + sl * vb_sum)
-                             + imp_c * dq_sum + imp_g * va_sum)
-            if mu_r_col > 0.0:   # the next collar limit needs this substep's axial thread force
-                faprev = (flo_a - fup_a) + (imp_a / h) * sl
+                    f_m += te_new
+                    t_cspring = kc * (qm - q)
+                    t_cdamp = cc * (wm - dq)
+                    f_m -= t_cspring + t_cdamp
+                    f_s += t_cspring + t_cdamp
+                # bearing and guide viscous, gravity, external force
+                f_s -= cs * dq
+                f_a -= cx * va
+                f_a += fext - ma * gs
                 if two_nuts:
-                    faprev += (flo_b - fup_b) + (imp_b / h) * sl
-            qm = qm_new
-            q = q_new
-            xa = xa_new
-            xb = xb_new
-            te = te_new
-            t += h
+                    f_b -= mb * gs
+                # end stops on nut A (unilateral, damper never pulls)
+                f_stop_lo = 0.0
+                f_stop_hi = 0.0
+                pen_stop_lo = xmin - xa
+                if pen_stop_lo > 0.0:
+                    f_stop_lo = max(0.0, kes * pen_stop_lo - ces * va)
+                    f_a += f_stop_lo
+                pen_stop_hi = xa - xmax
+                if pen_stop_hi > 0.0:
+                    f_stop_hi = max(0.0, kes * pen_stop_hi + ces * va)
+                    f_a -= f_stop_hi
+                f_jam = 0.0
+                pen_jam = 0.0
+                if jam_side != 0.0:   # penetration past the jam, on its side; force against it
+                    pen_jam = jam_side * (xa - jam_x)
+                    if pen_jam > 0.0:
+                        f_jam = max(0.0, kes * pen_jam + ces * jam_side * va)
+                        f_a -= jam_side * f_jam
+                # thread contact of nut A
+                flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq,
+                                                                 half_b, k, c)
+                fn_a = flo_a - fup_a
+                f_a += fn_a
+                f_s -= rt * fn_a
+                flo_b = 0.0
+                fup_b = 0.0
+                pen_lo_b = 0.0
+                pen_up_b = 0.0
+                if two_nuts:
+                    flo_b, fup_b, pen_lo_b, pen_up_b = _flank_forces(xb - rt * q, vb - rt * dq,
+                                                                     half_b, k, c)
+                    fn_b = flo_b - fup_b
+                    f_b += fn_b
+                    f_s -= rt * fn_b
+                    f_spring = f_pre + k_pre * (backlash - (xb - xa))
+                    f_b += f_spring
+                    f_a -= f_spring
+                # unconstrained velocity
+                wm0 = wm
+                dq0 = dq
+                va0 = va
+                vb0 = vb
+                if not rigid:
+                    wm = wm + f_m * hmi_m
+                dq = dq + f_s * hmi_s
+                va = va + f_a * hmi_a
+                if two_nuts:
+                    vb = vb + f_b * hmi_b
+                # friction limits of the elements (0: inactive; -1: stuck thread, bound only)
+                load_a = flo_a + fup_a
+                load_b = flo_b + fup_b
+                vs_a = rc * dq0 + sl * va0
+                vs_b = rc * dq0 + sl * vb0
+                lim_a, lo_a = _thread_limits(load_a, mode_a, vs_a, fc, hcl, hcl_lo)
+                lim_b, lo_b = _thread_limits(load_b, mode_b, vs_b, fc, hcl, hcl_lo)
+                lim_c = h * (ts0 + mu_r_col * abs(faprev))
+                nact = int(lim_a != 0.0) + int(lim_b != 0.0) + int(lim_c > 0.0) + int(lim_g > 0.0)
+                # impulses of thread A, thread B, bearing, guide
+                imp_a = imp_b = imp_c = imp_g = 0.0
+                a_alone = nact == 1 and lim_a != 0.0
+                if a_alone:   # thread A alone, the common case, without the tables below
+                    vfree_a = rc * dq + sl * va
+                    searched = False
+                    if lim_a < 0.0:   # stuck warm start: the stick impulse of _box1, on the bound
+                        imp_a = vfree_a * nrecip_w_aa
+                        if abs(imp_a) > lo_a * (1.0 + 1e-9):
+                            lim_a = _thread_limit(load_a, vs_a, fc, hcl)
+                            imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, 0)
+                    else:
+                        imp_a, mode_a, searched = _box1(w_aa, vfree_a, lim_a, mode_a)
+                    if searched:
+                        nsearch += 1.0
+                elif 0 < nact <= 2:
+                    # elements e1 < e2 (e2 = -1 if one): 0 thread A, 1 thread B, 2 bearing, 3 guide
+                    lim_of = (lim_a, lim_b, lim_c, lim_g)
+                    lo_of = (lo_a, lo_b, lim_c, lim_g)
+                    vfree_of = (rc * dq + sl * va, rc * dq + sl * vb, dq, va)
+                    mode_of = (mode_a, mode_b, mode_c, mode_g)
+                    e1 = 0 if lim_a != 0.0 else (1 if lim_b != 0.0 else (2 if lim_c > 0.0 else 3))
+                    e2 = -1
+                    if nact == 2:
+                        e2 = 3 if lim_g > 0.0 else (2 if lim_c > 0.0 else 1)
+                    lim1 = lim_of[e1]
+                    vfree1 = vfree_of[e1]
+                    w1 = w_table[5 * e1]
+                    searched = False
+                    if nact == 1:
+                        # stuck warm start: the stick impulse of _box1, on the bound
+                        if lim1 < 0.0:
+                            imp1 = -vfree1 / (w1 + (1e-12 * w1 + 1e-300))
+                            mode1 = 0
+                            if abs(imp1) > lo_of[e1] * (1.0 + 1e-9):
+                                lim1 = _thread_limit(load_a if e1 == 0 else load_b,
+                                                     vs_a if e1 == 0 else vs_b, fc, hcl)
+                                imp1, mode1, searched = _box1(w1, vfree1, lim1, 0)
+                        else:
+                            imp1, mode1, searched = _box1(w1, vfree1, lim1, mode_of[e1])
+                        imp2 = 0.0
+                        mode2 = 0
+                    else:
+                        lim2 = lim_of[e2]
+                        vfree2 = vfree_of[e2]
+                        w2 = w_table[5 * e2]
+                        w12 = w_table[4 * e1 + e2]
+                        ok = False
+                        if (lim1 < 0.0 or lim2 < 0.0) and mode_of[e1] == 0 and mode_of[e2] == 0:
+                            imp1, imp2, ok = _solve2(w1, w12, w2, vfree1, vfree2,
+                                                     lo_of[e1], lo_of[e2], 0, 0)
+                            mode1 = 0
+                            mode2 = 0
+                        if not ok:
+                            if lim1 < 0.0:
+                                lim1 = _thread_limit(load_a if e1 == 0 else load_b,
+                                                     vs_a if e1 == 0 else vs_b, fc, hcl)
+                            if lim2 < 0.0:
+                                lim2 = _thread_limit(load_a if e2 == 0 else load_b,
+                                                     vs_a if e2 == 0 else vs_b, fc, hcl)
+                            imp1, imp2, mode1, mode2, searched = _box2(
+                                w1, w12, w2, vfree1, vfree2, lim1, lim2, mode_of[e1], mode_of[e2])
+                    if searched:
+                        nsearch += 1.0
+                    imp_a = imp1 if e1 == 0 else 0.0
+                    imp_b = imp1 if e1 == 1 else (imp2 if e2 == 1 else 0.0)
+                    imp_c = imp1 if e1 == 2 else (imp2 if e2 == 2 else 0.0)
+                    imp_g = imp1 if e1 == 3 else (imp2 if e2 == 3 else 0.0)
+                    mode_a = mode1 if e1 == 0 else mode_a
+                    mode_b = mode1 if e1 == 1 else (mode2 if e2 == 1 else mode_b)
+                    mode_c = mode1 if e1 == 2 else (mode2 if e2 == 2 else mode_c)
+                    mode_g = mode1 if e1 == 3 else (mode2 if e2 == 3 else mode_g)
+                elif nact > 2:   # the general box LCP on the workspace arrays
+                    if lim_a < 0.0:
+                        lim_a = _thread_limit(load_a, vs_a, fc, hcl)
+                    if lim_b < 0.0:
+                        lim_b = _thread_limit(load_b, vs_b, fc, hcl)
+                    W = wk[WK_W:WK_V0].reshape((MAXE, MAXE))
+                    v0 = wk[WK_V0:WK_LIM]
+                    lim = wk[WK_LIM:WK_P]
+                    p = wk[WK_P:WK_A]
+                    A = wk[WK_A:WK_R].reshape((MAXE, MAXE))
+                    r = wk[WK_R:WK_LCP]
+                    mode = iwk[IWK_MODE:IWK_EID]
+                    eid = iwk[IWK_EID:IWK_IDX]
+                    idx = iwk[IWK_IDX:IWK_TRIAL]
+                    trial = iwk[IWK_TRIAL:WK_INT]
+                    nact = 0
+                    for e, lim_e in ((0, lim_a), (1, lim_b), (2, lim_c), (3, lim_g)):
+                        if lim_e > 0.0:
+                            eid[nact] = e
+                            lim[nact] = lim_e
+                            nact += 1
+                    for a in range(nact):
+                        ea = eid[a]
+                        if ea == 0:
+                            mode[a] = mode_a
+                            v0[a] = rc * dq + sl * va
+                        elif ea == 1:
+                            mode[a] = mode_b
+                            v0[a] = rc * dq + sl * vb
+                        elif ea == 2:
+                            mode[a] = mode_c
+                            v0[a] = dq
+                        else:
+                            mode[a] = mode_g
+                            v0[a] = va
+                        for b in range(nact):
+                            W[a, b] = w_table[4 * ea + eid[b]]
+                    if not _solve_free(W, v0, lim, mode, nact, p, A, r, idx):
+                        nsearch += 1.0
+                        _friction_lcp(W, v0, lim, mode, nact, p, A, r, idx, trial)
+                    for a in range(nact):
+                        ea = eid[a]
+                        if ea == 0:
+                            mode_a = mode[a]
+                            imp_a = p[a]
+                        elif ea == 1:
+                            mode_b = mode[a]
+                            imp_b = p[a]
+                        elif ea == 2:
+                            mode_c = mode[a]
+                            imp_c = p[a]
+                        else:
+                            mode_g = mode[a]
+                            imp_g = p[a]
+                if a_alone:
+                    dq += imp_a * w_ac
+                    va += imp_a * w_ag
+                elif nact > 0:   # element by element, in element order (adding 0 changes nothing)
+                    dq += rc * imp_a * mi_s
+                    va += sl * imp_a * mi_a
+                    dq += rc * imp_b * mi_s
+                    vb += sl * imp_b * mi_b
+                    dq += imp_c * mi_s
+                    va += imp_g * mi_a
+                if rigid:
+                    wm = dq
+                if not two_nuts:
+                    vb = va
+                # positions (symplectic Euler)
+                qm_new = qm + h * wm
+                q_new = q + h * dq
+                xa_new = xa + h * va
+                xb_new = xb + h * vb
+                # energy bookkeeping with the mid-step velocities (start + end) / 2, summed over
+                # the step and scaled once at its end
+                wm_sum = wm0 + wm
+                dq_sum = dq0 + dq
+                va_sum = va0 + va
+                vb_sum = vb0 + vb
+                sum_in += te_new * (dq_sum if rigid else wm_sum)
+                sum_ext += va_sum
+                damp_pow = cs * dq0 * dq_sum + cx * va0 * va_sum
+                if not rigid:
+                    damp_pow += cc * (wm0 - dq0) * (wm_sum - dq_sum)
+                gap_sum_a = va_sum - rt * dq_sum
+                if pen_lo_a > 0.0:
+                    damp_pow -= (flo_a - k * pen_lo_a) * gap_sum_a
+                if pen_up_a > 0.0:
+                    damp_pow += (fup_a - k * pen_up_a) * gap_sum_a
+                if pen_stop_lo > 0.0:
+                    damp_pow -= (f_stop_lo - kes * pen_stop_lo) * va_sum
+                if pen_stop_hi > 0.0:
+                    damp_pow += (f_stop_hi - kes * pen_stop_hi) * va_sum
+                if pen_jam > 0.0:
+                    damp_pow += jam_side * (f_jam - kes * pen_jam) * va_sum
+                if two_nuts:
+                    gap_sum_b = vb_sum - rt * dq_sum
+                    if pen_lo_b > 0.0:
+                        damp_pow -= (flo_b - k * pen_lo_b) * gap_sum_b
+                    if pen_up_b > 0.0:
+                        damp_pow += (fup_b - k * pen_up_b) * gap_sum_b
+                sum_damp += damp_pow
+                if a_alone:
+                    sum_fric += imp_a * (rc * dq_sum + sl * va_sum)
+                elif nact > 0:
+                    sum_fric += (imp_a * (rc * dq_sum + sl * va_sum)
+                                 + imp_b * (rc * dq_sum + sl * vb_sum)
+                                 + imp_c * dq_sum + imp_g * va_sum)
+                # the next collar limit needs this substep's axial thread force
+                if mu_r_col > 0.0:
+                    faprev = (flo_a - fup_a) + (imp_a / h) * sl
+                    if two_nuts:
+                        faprev += (flo_b - fup_b) + (imp_b / h) * sl
+                qm = qm_new
+                q = q_new
+                xa = xa_new
+                xb = xb_new
+                te = te_new
+                t += h
+            sub += seg
             if count_phase:
-                d_phase += 1
+                d_phase += seg
                 if d_phase >= d_m:   # the end of a drive period: sample the sensors
                     d_phase = 0
                     if not ideal_fb:
