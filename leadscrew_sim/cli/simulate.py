@@ -276,31 +276,51 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
     enc, ids = w.enc, w.ids
     t_state = t_cmd + dt_ns
     states = enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
-    rows, chans = [cmd[0]], [cmd[1]]
-    rows += [r for _topic, r in states]
-    times = [t_cmd] + [t_state] * len(states)
-    chans += [ids[topic] for topic, _r in states]
+    st_rows = [r for _topic, r in states]
+    st_chans = [ids[topic] for topic, _r in states]
     if w.tf is not None:
-        rows.append(w.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
-        times.append(t_state)
-        chans.append(ids['/tf'])
+        st_rows.append(w.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
+        st_chans.append(ids['/tf'])
     if clock:
-        rows.append(enc.clock.rows(t_state, []))
-        times.append(t_state)
-        chans.append(ids['/clock'])
-    a = 0
-    for c in changes + [ks.stop]:
-        i = c - ks.start
+        st_rows.append(enc.clock.rows(t_state, []))
+        st_chans.append(ids['/clock'])
+    _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces,
+                  [c - ks.start for c in changes])
+
+
+def _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces, changed):
+    """
+    Write a block as groups of one log time: the states of tick i - 1, then command i.
+
+    The file order is the node's (command, force, then that tick's states, ...);
+    grouping by log time lets the writer cut chunks between ticks only.
+    ``changed``: block indices of the ticks whose force changed (written after
+    their command).
+    """
+    cmd_rows, cmd_chan = cmd
+    n = len(t_cmd)
+    m = len(st_chans)
+
+    def states(a, b):               # the states of ticks a .. b - 1 alone
+        w.rec.write_rows(st_chans, [r[a:b] for r in st_rows], [t_state[a:b]] * m)
+
+    def command(i):
+        w.write(cmd_chan, cmd_rows[i].tobytes(), int(t_cmd[i]))
+        if i in changed:
+            w.write(w.ids['external_force'], C.encode_float64(forces[i]), int(t_cmd[i]))
+
+    command(0)
+    a = 1                           # groups a .. i - 1 go in one call
+    for i in sorted(c for c in changed if c > 0) + [n]:
         if i > a:
-            w.rec.write_rows(chans, [r[a:i] for r in rows], [t[a:i] for t in times])
-        if c == ks.stop:
-            break
-        # a force change: torque, force, then the states of that tick
-        w.write(chans[0], rows[0][i].tobytes(), int(t_cmd[i]))
-        w.write(ids['external_force'], C.encode_float64(forces[i]), int(t_cmd[i]))
-        w.rec.write_rows(chans[1:], [r[i:i + 1] for r in rows[1:]],
-                         [t[i:i + 1] for t in times[1:]])
-        a = i + 1
+            w.rec.write_rows(st_chans + [cmd_chan],
+                             [r[a - 1:i - 1] for r in st_rows] + [cmd_rows[a:i]],
+                             [t_state[a - 1:i - 1]] * m + [t_cmd[a:i]])
+        if i < n:
+            states(i - 1, i)
+            command(i)
+            a = i + 1
+    states(n - 1, n)
 
 
 def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line):

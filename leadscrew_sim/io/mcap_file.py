@@ -10,11 +10,12 @@ record (``serialized_metadata``, rosbag2 BagMetadata version 9) written at close
 
 Loss bound on a crash (SIGKILL, power is not covered: no fsync): the open
 chunk is written and the file flushed every ``flush_interval`` seconds of
-wall time, checked on each :meth:`McapRecorder.write` (and on
-:meth:`McapRecorder.flush`). A killed process therefore loses at most the
-messages of the last ``flush_interval`` s plus one write period; the rest is
-read back by :func:`leadscrew_sim.io.session.recover`. Times are in
-nanoseconds, sizes in bytes.
+wall time, checked on each :meth:`McapRecorder.write`, at the first message
+of the next tick (so a tick stays in one chunk); :meth:`McapRecorder.flush`
+writes at once. A killed process therefore loses at most the messages of
+the last ``flush_interval`` s plus one tick and one write period; the rest is
+read back by :func:`leadscrew_sim.io.session.recover` or ``mcap recover``.
+Times are in nanoseconds, sizes in bytes.
 """
 import os
 import threading
@@ -238,9 +239,8 @@ class McapRecorder(Guarded):
                 elif log_time_ns > self._t_last:
                     self._t_last = log_time_ns
                 if time.monotonic() - self._last_flush >= self.flush_interval:
-                    self._flush_locked()
-                else:
-                    self._size = self._writer.position
+                    self._flush_soon_locked()
+                self._size = self._writer.position
             except OSError as exc:
                 self._fail(exc)
 
@@ -274,9 +274,8 @@ class McapRecorder(Guarded):
                 self._t_first = lo if self._t_first is None else min(self._t_first, lo)
                 self._t_last = hi if self._t_last is None else max(self._t_last, hi)
                 if time.monotonic() - self._last_flush >= self.flush_interval:
-                    self._flush_locked()
-                else:
-                    self._size = self._writer.position
+                    self._flush_soon_locked()
+                self._size = self._writer.position
             except OSError as exc:
                 self._fail(exc)
 
@@ -292,6 +291,12 @@ class McapRecorder(Guarded):
     def _flush_locked(self):
         self._writer.flush()
         self._size = self._writer.position
+        self._last_flush = time.monotonic()
+
+    def _flush_soon_locked(self):
+        # the writer closes the chunk and flushes at the next tick (a later log time), so
+        # a tick never spans two chunks; the crash-loss bound grows by that one tick
+        self._writer.flush_soon()
         self._last_flush = time.monotonic()
 
     def add_metadata(self, name, data):

@@ -9,13 +9,22 @@ messages with numpy (:meth:`McapWriter.add_rows`, well under 1 us per
 message). Files are read back in the tests by the independent readers
 ``mcap`` and ``rosbags``.
 
-Layout written (https://mcap.dev/spec): magic, Header; Schema and Channel
-records in the data section as they are registered; messages in
-zstd-compressed Chunks, each followed by its Message Index records;
-Metadata records; Data End; a summary section (Schemas, Channels,
-Statistics, Chunk Indexes, Metadata Indexes), Summary Offsets, Footer
-(with the summary CRC) and the closing magic. Chunk records carry the CRC-32
-of their uncompressed data. Times are uint64 nanoseconds, sizes bytes.
+Layout written (https://mcap.dev/spec): magic, Header; messages in
+zstd-compressed Chunks, each followed by its Message Index records; Schema
+and Channel records go into the open chunk when they are registered, as
+rosbag2 writes them (so a file cut short by a crash has every channel before
+its messages, and ``mcap recover`` rebuilds a valid file; records registered
+with no message after them are written outside a chunk); Metadata records;
+Data End; a summary section (Schemas, Channels, Statistics, Chunk Indexes,
+Metadata Indexes), Summary Offsets, Footer (with the summary CRC) and the
+closing magic. Chunk records carry the CRC-32 of their uncompressed data.
+Times are uint64 nanoseconds, sizes bytes.
+
+A chunk is closed only between two log times: once it holds ``chunk_size``
+bytes (or a flush is asked for with :meth:`McapWriter.flush_soon`), it
+closes before the first message that is later than all it holds. Messages of
+one tick share their log time, so a tick never spans two chunks and the
+chunks' time ranges do not overlap when the messages come in time order.
 """
 import struct
 import zlib
@@ -74,6 +83,8 @@ class McapWriter:
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
         self._schemas = []             # record bytes, in id order
         self._channels = []
+        self._close_due = False        # close the chunk at the next later log time
+        self._flush_due = False        # and flush the stream then
         self._counts = {}              # channel id -> messages
         self._message_count = 0
         self._t_start = self._t_end = None
@@ -103,23 +114,35 @@ class McapWriter:
         self._pos += len(data)
 
     def register_schema(self, name, encoding, data):
-        """Write a Schema record; return its id (1, 2, ...)."""
+        """Put a Schema record into the open chunk; return its id (1, 2, ...)."""
         sid = len(self._schemas) + 1
         rec = _record(OP_SCHEMA, struct.pack('<H', sid) + _string(name) + _string(encoding)
                       + _U32.pack(len(data)) + bytes(data))
         self._schemas.append(rec)
-        self._write(rec)
+        self._buf += rec
         return sid
 
     def register_channel(self, topic, message_encoding, schema_id, metadata=None):
-        """Write a Channel record; return its id (1, 2, ...)."""
+        """Put a Channel record into the open chunk; return its id (1, 2, ...)."""
         cid = len(self._channels) + 1
         rec = _record(OP_CHANNEL, struct.pack('<HH', cid, schema_id) + _string(topic)
                       + _string(message_encoding) + _string_map(dict(metadata or {})))
         self._channels.append(rec)
         self._counts[cid] = 0
-        self._write(rec)
+        self._buf += rec
         return cid
+
+    def flush_soon(self):
+        """Close the chunk and flush the stream at the next message later than the chunk's."""
+        self._close_due = self._flush_due = True
+
+    def _close_before(self, log_time):
+        """Close the open chunk if a close is due and ``log_time`` starts a later tick."""
+        if self._close_due and self._c_end is not None and log_time > self._c_end:
+            flush = self._flush_due
+            self.close_chunk()
+            if flush:
+                self._out.flush()
 
     def add_metadata(self, name, data):
         """Write a Metadata record (``{str: str}``) outside any chunk."""
@@ -130,7 +153,9 @@ class McapWriter:
 
     # ---------------------------------------------------------------- messages
     def add_message(self, channel_id, log_time, data, publish_time, sequence=0):
-        """Append one message to the open chunk (closed once it holds ``chunk_size`` bytes)."""
+        """Append one message to the open chunk (closed between ticks once it is full)."""
+        if self._close_due:
+            self._close_before(log_time)
         buf = self._buf
         off = len(buf)
         buf += _MESSAGE.pack(OP_MESSAGE, 22 + len(data), channel_id, sequence, log_time,
@@ -152,7 +177,7 @@ class McapWriter:
         elif log_time > self._c_end:
             self._c_end = log_time
         if len(buf) >= self._chunk_size:
-            self.close_chunk()
+            self._close_due = True
 
     def add_rows(self, channel_ids, payloads, log_times, sequences):
         """
@@ -161,7 +186,9 @@ class McapWriter:
         ``payloads``: one uint8 array of shape (n, L_j) per channel (fixed-length
         messages); ``log_times``: one int array (n,) per channel, also used as
         publish time; ``sequences``: one int array (n,) per channel. Rows are
-        never split across chunks.
+        never split across chunks, and a chunk starts only at a row whose
+        messages are all later than everything before it (a tick boundary when
+        a row holds one log time).
         """
         m = len(channel_ids)
         if not (m and len(payloads) == m and len(log_times) == m and len(sequences) == m):
@@ -187,11 +214,23 @@ class McapWriter:
             at += MESSAGE_OVERHEAD + p.shape[1]
         row = np.dtype({'names': names, 'formats': formats, 'offsets': offsets,
                         'itemsize': at})
-        per_chunk = max(1, self._chunk_size // at)
+        times = np.stack([np.asarray(t[:n], dtype=np.uint64) for t in log_times])
+        row_min, row_max = times.min(axis=0), times.max(axis=0)
+        cut_ok = np.empty(n, dtype=bool)        # a chunk may start at row j
+        cut_ok[0] = self._c_end is None or int(row_min[0]) > self._c_end
+        cut_ok[1:] = row_min[1:] > np.maximum.accumulate(row_max)[:-1]
+        cuts = np.flatnonzero(cut_ok)
         k = 0
         while k < n:
+            if ((self._close_due or len(self._buf) >= self._chunk_size) and cut_ok[k]
+                    and self._c_end is not None):
+                flush = self._flush_due
+                self.close_chunk()
+                if flush:
+                    self._out.flush()
             room = max(1, (self._chunk_size - len(self._buf)) // at)
-            r = min(n - k, room, per_chunk)
+            nxt = np.searchsorted(cuts, k + room)       # the rows up to a cut past the room
+            r = (int(cuts[nxt]) if nxt < len(cuts) else n) - k
             block = np.zeros(r, dtype=row)
             base = len(self._buf)
             for j, cid in enumerate(channel_ids):
@@ -217,11 +256,15 @@ class McapWriter:
             self._message_count += r * m
             k += r
             if len(self._buf) >= self._chunk_size:
-                self.close_chunk()
+                self._close_due = True
 
     def close_chunk(self):
         """Compress and write the open chunk with its message indexes (no-op if empty)."""
-        if not self._buf:
+        if self._c_start is None:       # no message: the records go out as they are
+            if self._buf:
+                self._write(bytes(self._buf))
+                self._buf = bytearray()
+            self._close_due = self._flush_due = False
             return
         data = bytes(self._buf)
         packed = self._zstd.compress(data)
@@ -255,6 +298,7 @@ class McapWriter:
         self._buf = bytearray()
         self._index = {}
         self._c_start = self._c_end = None
+        self._close_due = self._flush_due = False
 
     def flush(self):
         """Write the open chunk and flush the stream (no fsync)."""

@@ -18,7 +18,7 @@ import subprocess
 import sys
 import time
 
-from helpers import cli_ok, MS, NODE, NodeProcess, NS, Ros, stamp_ns, wait_states
+from helpers import cli_ok, MS, NODE, NodeProcess, NS, Ros, SHARED, stamp_ns, wait_states
 from leadscrew_sim.core import load_preset, ScrewParams
 from leadscrew_sim.io.msgdefs import ros2msg_definition
 from leadscrew_sim.io.session import recover
@@ -30,6 +30,9 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
+
+#: The mcap CLI, an independent reader and checker (absent in a user's clone).
+MCAP_CLI = SHARED / 'mcap-cli' / 'mcap'
 
 #: QoS of the joint_states subscriptions of this module (deeper than helpers.DEEP).
 DEEP = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
@@ -382,6 +385,31 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
     assert {b - a for a, b in zip(stamps, stamps[1:])} == {MS}
     assert {s for s in live_js if s < bound} <= set(rec)
     assert all(rec[s] == live_js[s] for s in live_js if s in rec)
+    if MCAP_CLI.exists():
+        # The independent tool recovers the same file into one its own doctor accepts,
+        # with the same joint_states (its order of records is its own).
+        go = tmp_path / 'go.mcap'
+        r = subprocess.run([str(MCAP_CLI), 'recover', str(path), '-o', str(go)],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+        doc = subprocess.run([str(MCAP_CLI), 'doctor', str(go)], capture_output=True,
+                             text=True, timeout=60)
+        assert doc.returncode == 0, doc.stdout + doc.stderr
+        go_js = {js_key(d)[0] for t, _s, _lt, d in read_mcap(go)[0] if t == '/joint_states'}
+        assert go_js == set(rec)
+
+
+@pytest.mark.skipif(not MCAP_CLI.exists(), reason='the mcap CLI (../shared) is absent')
+def test_node_recording_chunks_do_not_overlap(realtime_run):
+    """``mcap info`` finds no overlapping chunks and ``mcap doctor`` no error in a node file."""
+    path = str(realtime_run['path'])
+    info = subprocess.run([str(MCAP_CLI), 'info', path], capture_output=True, text=True,
+                          timeout=60)
+    assert info.returncode == 0, info.stderr
+    assert re.search(r'overlaps: no\b', info.stdout), info.stdout
+    doc = subprocess.run([str(MCAP_CLI), 'doctor', path], capture_output=True, text=True,
+                         timeout=60)
+    assert doc.returncode == 0, doc.stdout + doc.stderr
 
 
 @pytest.mark.timeout(90)
@@ -406,6 +434,8 @@ def test_sigkill_of_node_alone_leaves_a_closed_file(live, tmp_path):
     assert max(rec) >= bound
     assert {s for s in live_js if s < bound} <= set(rec)
     assert all(rec[s] == live_js[s] for s in live_js if s in rec)
+    # the recorder child, left alone, finishes the file without a traceback
+    assert 'Traceback' not in (tmp_path / 'node.log').read_text()
 
 
 # ---------------------------------------------------------------------------
