@@ -164,8 +164,10 @@ class Resim:
                 raise CliError(f'simulation fault at step {k}: {exc}') from None
             if (k + 1) % dec == 0:
                 line.sample(k + 1, t_k + dt_ns, model.joint_values())
-            _states(line.due(k + 1), model.truth_values() if (k + 1) % dec == 0 else None,
-                    t_k + dt_ns, writer, enc, new_states, self.dt_ns, t0)
+            sampled = (k + 1) % dec == 0
+            _states(line.due(k + 1), model.truth_values() if sampled else None,
+                    t_k + dt_ns, writer, enc, new_states, self.dt_ns, t0,
+                    model.analysis_values() if sampled and writer is not None else None)
             if keep:
                 outs.append(model.output())
             if progress is not None and not k & 1023:
@@ -267,7 +269,7 @@ class Resim:
         return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
 
 
-def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0):
+def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0, analysis=None):
     """
     Keep (and write, if asked) the states of one tick, as the node publishes them.
 
@@ -275,7 +277,8 @@ def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0):
     truth values of a sampled tick (None otherwise). ``new_states`` gets, per
     step index of ``now`` (the log time, as the recorded states are indexed),
     [joint_states values, nut position, thread force values, sim/joint_states
-    bytes], None where the tick published none.
+    bytes], None where the tick published none. ``analysis``: the tick's
+    analysis values, written after the truth (None: none).
     """
     values = None
     for stamp, values in delivered:
@@ -290,6 +293,9 @@ def _states(delivered, truth, now, writer, enc, new_states, dt_ns, t0):
                 writer.write(writer.ids[topic], data, now)
         new_states.setdefault((now - t0) // dt_ns, [None] * 4)[2:] = \
             (truth[-1], truth[9]), dict(messages)['sim/joint_states']
+    if analysis is not None:
+        for topic, data in enc.analysis(now, analysis):
+            writer.write(writer.ids[topic], data, now)
     if values is not None and writer is not None:
         writer.write_tf(stamp, values[0], values[1], now)
 

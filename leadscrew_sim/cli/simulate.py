@@ -237,7 +237,7 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
     """Step tick by tick (the torque depends on the state); return torques and columns."""
     dt = dt_ns / NS
     n = len(ks)
-    names = M.SENSOR_COLUMNS[:4] + M.TRUTH_VALUES
+    names = M.SENSOR_COLUMNS[:4] + M.TRUTH_VALUES + M.ANALYSIS_COLUMNS
     cols = {name: np.empty(n) for name in names}
     torques = []
     lossy = hold.delay or hold.drop_rate
@@ -255,7 +255,8 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
             model.advance(applied, None, forces[i])
         except FloatingPointError as exc:
             raise CliError(f'simulation fault: {exc}') from None
-        for name, v in zip(names, model.joint_values()[:4] + model.truth_values()):
+        for name, v in zip(names, model.joint_values()[:4] + model.truth_values()
+                           + model.analysis_values()):
             cols[name][i] = v
         x, vm = cols['nut_position'][i], vm_scale * cols['motor_velocity'][i]
     return torques, cols
@@ -275,7 +276,8 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
         return
     enc, ids = w.enc, w.ids
     t_state = t_cmd + dt_ns
-    states = enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
+    states = (enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
+              + enc.rows('analysis', t_state, _analysis(cols)))
     st_rows = [r for _topic, r in states]
     st_chans = [ids[topic] for topic, _r in states]
     if w.tf is not None:
@@ -286,6 +288,12 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
         st_chans.append(ids['/clock'])
     _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces,
                   [c - ks.start for c in changes])
+
+
+def _analysis(cols):
+    """Return the analysis values of a block's columns, by message field (floats)."""
+    return {name: np.asarray(cols[col], dtype=float)
+            for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
 
 
 def _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces, changed):
@@ -328,6 +336,7 @@ def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line)
     enc, ids = w.enc, w.ids
     changed = set(changes)
     sensor_names, truth_names = M.SENSOR_VALUES, M.TRUTH_VALUES
+    analysis = _analysis(cols)
     for i, k in enumerate(ks):
         t_cmd, t_state = k * dt_ns, (k + 1) * dt_ns
         w.write(cmd[1], cmd[0][i].tobytes(), t_cmd)
@@ -339,6 +348,9 @@ def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line)
             for topic, data in enc.sensor(stamp, values):
                 w.write(ids[topic], data, t_state)
         for topic, data in enc.truth(t_state, tuple(float(cols[n][i]) for n in truth_names)):
+            w.write(ids[topic], data, t_state)
+        for topic, data in enc.analysis(t_state, tuple(float(analysis[n][i])
+                                                       for n in M.ANALYSIS_VALUES)):
             w.write(ids[topic], data, t_state)
         if values is not None:
             w.write_tf(stamp, values[0], values[1], t_state)

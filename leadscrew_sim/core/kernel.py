@@ -40,7 +40,7 @@ from .layout import (
     IWK_EID, IWK_IDX, IWK_MODE, IWK_TRIAL,
     MAXE, NO, N_CMD,
     O_CONTA, O_CONTB, O_DFAULT, O_DFERR, O_DMODE, O_DTCMD, O_DWREF, O_FAX, O_FFA, O_FFB, O_FG,
-    O_HOME, O_JQ, O_JV, O_JW, O_JX, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB, O_STICKA, O_STICKB,
+    O_HOME, O_JAM, O_JQ, O_JV, O_JW, O_JX, O_NLA, O_NLB, O_NSUB, O_NUA, O_NUB, O_STICKA, O_STICKB,
     O_SWMAX, O_SWMIN, O_TBR, O_TE, O_TTH, O_VSA, O_VSB,
     P_AB, P_B, P_C, P_CC, P_CES, P_CL, P_CS, P_CX, P_DFEL, P_DKP, P_DKV, P_DQ0, P_DQSD,
     P_DRATE, P_DSCALE, P_DTI, P_DTLT, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT, P_FINJ, P_FP,
@@ -842,6 +842,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         out[O_DFERR] = d_ferr if d_mode == MODE_POSITION else 0.0
         out[O_DTCMD] = t_sat
         out[O_DWREF] = d_wref if drive_on else 0.0
+        out[O_JAM] = jam_side
         # what the sensors report: an ideal live encoder the true screw angle and rate
         enc_live = P[P_EIDEAL] > 0.5 and P[P_EFRZ] <= 0.5
         if d_phase != 0 and not ideal_fb:   # no drive sample at the step's end: read now

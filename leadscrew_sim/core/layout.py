@@ -173,10 +173,11 @@ O_JQ = 26       # screw joint angle: the encoder reading (the true screw angle i
 O_JW = 27       # screw joint rate from the encoder [rad/s]
 O_JX = 28       # nut joint position: the scale, or the encoder through the lead [m]
 O_JV = 29       # nut joint velocity, from the same sensor [m/s]
-NO = 30         # length of out
+O_JAM = 30      # side the jam blocks (S_JAM) at the end of the step [-]
+NO = 31         # length of out
 
 # Records of run_series: one row per step ------------------------------------------
-REC_STATE = 10                  # a row starts with S[0:REC_STATE] (positions .. time)
+REC_STATE = 14                  # a row starts with S[0:REC_STATE] (positions .. energies)
 REC_ROW = REC_STATE + NO        # then the NO outputs: floats per row
 
 # Friction elements --------------------------------------------------------------

@@ -220,7 +220,12 @@ class LeadScrewModel:
             [N]) as :meth:`truth_values`; sensor_screw_angle [rad],
             sensor_screw_velocity [rad/s], sensor_nut_position [m] and
             sensor_nut_velocity [m/s], what the sensors report
-            (:meth:`joint_values`). With ``commands`` also the drive's: mode,
+            (:meth:`joint_values`); the same of half-nut B as contact_b,
+            stuck_b, normal_leading_b, normal_trailing_b, friction_force_b,
+            sliding_velocity_b; stick_a, stick_b (1 stuck, 0 sliding, -1 no
+            load); the energy terms since reset [J] of :meth:`energy` but the
+            residual (input_work, external_work, kinetic, potential, spring,
+            friction_dissipation, damping_dissipation). With ``commands`` also the drive's: mode,
             fault (codes), limit_min, limit_max, home (bool),
             following_error [rad], drive_torque (the drive's torque command
             before the motor lag) [N m] and velocity_reference [rad/s].
@@ -259,6 +264,10 @@ class LeadScrewModel:
                             self.dt, self.nsub, self._wk, self._iwk, rec)
         res = series_result(rec[:done], hs, commands is not None, float(self._P[L.P_CL]),
                             float(self._P[L.P_SL]))
+        stored = stored_energy(self.params, self._P, rec[:done].T,
+                               rec[:done, L.REC_STATE + L.O_JAM])
+        res.update({name: e - e0 for name, e, e0 in
+                    zip(('kinetic', 'potential', 'spring'), stored, self._e0)})
         if done < n:
             self._fail(f'non-finite state at step {done}; integration stopped')
         return res
@@ -520,6 +529,25 @@ class LeadScrewModel:
         return (hs * s[L.S_QM], hs * s[L.S_Q], s[L.S_XA], s[L.S_XB], hs * s[L.S_WM],
                 hs * s[L.S_DQ], s[L.S_VA], s[L.S_VB], hs * o[L.O_TE] + 0.0, hs * o[L.O_TTH],
                 f_a, o[L.O_FAX] - f_a, o[L.O_FAX])
+
+    def analysis_values(self):
+        """
+        Return the thread contact of both nut bodies and the energy terms, as floats.
+
+        (contact, stick, leading and trailing flank normal force [N], friction
+        force [N] and sliding velocity [m/s] of nut A, the same six of half-nut
+        B, then input_work, external_work, kinetic, potential, spring,
+        friction_dissipation, damping_dissipation [J] of :meth:`energy`):
+        contact 1 leading flank, -1 trailing, 0 in the backlash; stick 1 stuck,
+        0 sliding, -1 no load.
+        """
+        o = self.out.tolist()
+        e = self.energy()
+        return (o[L.O_CONTA], o[L.O_STICKA], o[L.O_NLA], o[L.O_NUA], o[L.O_FFA], o[L.O_VSA],
+                o[L.O_CONTB], o[L.O_STICKB], o[L.O_NLB], o[L.O_NUB], o[L.O_FFB], o[L.O_VSB],
+                *(float(e[k]) for k in ('input_work', 'external_work', 'kinetic', 'potential',
+                                        'spring', 'friction_dissipation',
+                                        'damping_dissipation')))
 
     def output(self):
         """Return the StepOutput of the current state and last step."""

@@ -103,6 +103,13 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0):
         nut_b_position=r[:, L.S_XB], nut_b_velocity=r[:, L.S_VB],
         sensor_screw_angle=hand(o + L.O_JQ), sensor_screw_velocity=hand(o + L.O_JW),
         sensor_nut_position=r[:, o + L.O_JX], sensor_nut_velocity=r[:, o + L.O_JV])
+    res.update(
+        contact_b=r[:, o + L.O_CONTB].astype(int), stuck_b=r[:, o + L.O_STICKB] == 1.0,
+        normal_leading_b=r[:, o + L.O_NLB], normal_trailing_b=r[:, o + L.O_NUB],
+        friction_force_b=r[:, o + L.O_FFB], sliding_velocity_b=r[:, o + L.O_VSB],
+        stick_a=r[:, o + L.O_STICKA], stick_b=r[:, o + L.O_STICKB],
+        input_work=r[:, L.S_WIN], external_work=r[:, L.S_WEXT],
+        friction_dissipation=r[:, L.S_EFRIC], damping_dissipation=r[:, L.S_EDAMP])
     # the axial thread force on nut A, and the rest on half-nut B, as truth_values() forms them
     f_a = ((r[:, o + L.O_NLA] - r[:, o + L.O_NUA]) * cl + r[:, o + L.O_FFA] * sl)
     res.update(nut_force=f_a, nut_b_force=r[:, o + L.O_FAX] - f_a)
@@ -121,9 +128,9 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0):
     return res
 
 
-def stored_energy(p, P, s):
+def stored_energy(p, P, s, jam_side=None):
     """
-    Return the (kinetic, potential, spring) energy [J] of a state.
+    Return the (kinetic, potential, spring) energy [J] of a state, or of many.
 
     Parameters
     ----------
@@ -132,7 +139,10 @@ def stored_energy(p, P, s):
     P : numpy.ndarray
         Their parameter vector.
     s : numpy.ndarray
-        The state vector.
+        The state vector, or the records of a run transposed (``s[i]`` one
+        column per state slot ``i`` < ``REC_STATE``): then the energies are arrays.
+    jam_side : float or numpy.ndarray, optional
+        The side the jam blocks (``S_JAM``); default ``s[S_JAM]``.
 
     """
     rigid = P[L.P_RIGID] > 0.5
@@ -155,14 +165,15 @@ def stored_energy(p, P, s):
     for x in bodies:
         d = x - rt * s[L.S_Q]
         for e in (-d - hb, d - hb):
-            if e > 0:
-                spring += 0.5 * k * e * e
+            e = np.maximum(e, 0.0)
+            spring += 0.5 * k * e * e
     if not rigid:
         spring += 0.5 * p.coupling_stiffness * (s[L.S_QM] - s[L.S_Q]) ** 2
-    jam = s[L.S_JAM] * (s[L.S_XA] - P[L.P_JAMX])   # the jam's penetration, if engaged
+    side = s[L.S_JAM] if jam_side is None else jam_side
+    jam = side * (s[L.S_XA] - P[L.P_JAMX])   # the jam's penetration, if engaged
     for pen in (p.stroke_min - s[L.S_XA], s[L.S_XA] - p.stroke_max, jam):
-        if pen > 0:
-            spring += 0.5 * p.end_stop_stiffness * pen * pen
+        pen = np.maximum(pen, 0.0)
+        spring += 0.5 * p.end_stop_stiffness * pen * pen
     return kin, pot, spring
 
 

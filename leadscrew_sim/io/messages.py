@@ -18,7 +18,8 @@ state topic is an entry in :data:`leadscrew_sim.io.topics.TOPICS` and one
 here. The value names are the columns of ``LeadScrewModel.run()`` (the
 sensor ones with the prefix ``sensor_`` where a true value has the same name).
 """
-from .cdr import clock_template, float64_template, joint_state_template, wrench_template
+from .cdr import (clock_template, CdrWriter, float64_template, joint_state_template, Template,
+                  wrench_template)
 
 #: What the sensors report in one tick: rad, m, rad/s, m/s, N m, N.
 SENSOR_VALUES = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity',
@@ -33,6 +34,21 @@ SENSOR_COLUMNS = ('sensor_screw_angle', 'sensor_nut_position', 'sensor_screw_vel
 TRUTH_VALUES = ('motor_angle', 'screw_angle', 'nut_position', 'nut_b_position',
                 'motor_velocity', 'screw_velocity', 'nut_velocity', 'nut_b_velocity',
                 'motor_torque', 'thread_torque', 'nut_force', 'nut_b_force', 'axial_force')
+
+#: The thread contact and energy of one tick (``LeadScrewModel.analysis_values()``), the
+#: fields of ``sim/thread_state`` (type leadscrew_sim/msg/ThreadState, recorded only).
+ANALYSIS_VALUES = ('contact_a', 'stick_a', 'normal_leading_a', 'normal_trailing_a',
+                   'friction_a', 'sliding_velocity_a', 'contact_b', 'stick_b',
+                   'normal_leading_b', 'normal_trailing_b', 'friction_b', 'sliding_velocity_b',
+                   'input_work', 'external_work', 'kinetic', 'potential', 'spring',
+                   'friction_dissipation', 'damping_dissipation')
+
+#: The ``model.run()`` column of each analysis value.
+ANALYSIS_COLUMNS = ('contact', 'stick_a', 'normal_leading', 'normal_trailing',
+                    'friction_force', 'sliding_velocity', 'contact_b', 'stick_b',
+                    'normal_leading_b', 'normal_trailing_b', 'friction_force_b',
+                    'sliding_velocity_b', 'input_work', 'external_work', 'kinetic',
+                    'potential', 'spring', 'friction_dissipation', 'damping_dissipation')
 
 #: The joints of ``sim/joint_states`` (after the joint prefix); nut_b_joint only with a
 #: split nut.
@@ -54,11 +70,21 @@ STATE_VALUES = {
     'nut_position': (False, 'sensor', ('nut_position',)),
     'thread_force': (True, 'truth', ('axial_force', 'thread_torque')),
     'sim/joint_states': (True, 'truth', _truth_names(False)),
+    'sim/thread_state': (True, 'analysis', ANALYSIS_VALUES),
 }
 
 #: The topics of each group.
 SENSOR_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'sensor')
 TRUTH_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'truth')
+ANALYSIS_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'analysis')
+
+
+def analysis_template():
+    """Template of a leadscrew_sim/msg/ThreadState: header, then the 19 float64 fields."""
+    w = CdrWriter()
+    stamp_off = w.stamp(0, 0)
+    w.string('')
+    return Template(w.buf, stamp_off, [w.f64(0.0) for _ in ANALYSIS_VALUES])
 
 
 class StateEncoder:
@@ -92,6 +118,7 @@ class StateEncoder:
             'nut_position': float64_template(),
             'thread_force': wrench_template(),
             'sim/joint_states': joint_state_template(self.truth_joints, n, n, n),
+            'sim/thread_state': analysis_template(),
         }
         self.joint_states = self.templates['joint_states']
         self.nut_position = self.templates['nut_position']
@@ -100,7 +127,7 @@ class StateEncoder:
         self.clock = clock_template()
         values = dict(STATE_VALUES)
         values['sim/joint_states'] = (True, 'truth', _truth_names(split_nut))
-        order = {'sensor': SENSOR_VALUES, 'truth': TRUTH_VALUES}
+        order = {'sensor': SENSOR_VALUES, 'truth': TRUTH_VALUES, 'analysis': ANALYSIS_VALUES}
         self._plan = {
             group: tuple((topic, self.templates[topic], stamped,
                           tuple(order[group].index(name) for name in names), names)
@@ -136,6 +163,21 @@ class StateEncoder:
         """
         return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
                 for topic, template, stamped, index, _n in self._plan['truth']]
+
+    def analysis(self, stamp_ns, values):
+        """
+        Return [(topic, bytes)] of the recorded-only analysis topic of one tick.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            The tick's time [ns].
+        values : sequence of float
+            The values of :data:`ANALYSIS_VALUES`, in that order.
+
+        """
+        return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
+                for topic, template, stamped, index, _n in self._plan['analysis']]
 
     def rows(self, group, stamps_ns, columns):
         """

@@ -36,6 +36,34 @@ DELIMITER = '=' * 80 + '\n'
 #: share directory; keys ``'pkg/msg/Type'``.
 EMBEDDED = {
     'tf2_msgs/msg/TFMessage': 'geometry_msgs/TransformStamped[] transforms\n',
+    'leadscrew_sim/msg/ThreadState': (
+        '# One tick of the thread contact of both nut bodies and the energy terms since\n'
+        '# reset (recorded by leadscrew_sim only; SI units).\n'
+        'std_msgs/Header header\n'
+        '# nut A: contact 1 leading flank, -1 trailing, 0 in the backlash;\n'
+        '# stick 1 stuck, 0 sliding, -1 no load\n'
+        'float64 contact_a\n'
+        'float64 stick_a\n'
+        'float64 normal_leading_a  # flank normal force [N]\n'
+        'float64 normal_trailing_a  # [N]\n'
+        'float64 friction_a  # friction force along the flank [N]\n'
+        'float64 sliding_velocity_a  # [m/s]\n'
+        '# half-nut B of a split nut, the same (contact 0 and stick -1 without one)\n'
+        'float64 contact_b\n'
+        'float64 stick_b\n'
+        'float64 normal_leading_b\n'
+        'float64 normal_trailing_b\n'
+        'float64 friction_b\n'
+        'float64 sliding_velocity_b\n'
+        '# energy since reset [J]: input + external = kinetic + potential + spring\n'
+        '# + friction_dissipation + damping_dissipation (+ the integration residual)\n'
+        'float64 input_work\n'
+        'float64 external_work\n'
+        'float64 kinetic\n'
+        'float64 potential\n'
+        'float64 spring\n'
+        'float64 friction_dissipation\n'
+        'float64 damping_dissipation\n'),
 }
 #: RIHS01 type hashes of the :data:`EMBEDDED` types, computed with rosidl's algorithm
 #: (``leadscrew_sim.io.tf.tfmessage_type_hash`` recomputes the TFMessage one).

@@ -107,7 +107,8 @@ class RunWriter:
         if self.rec.error:
             raise RunFileError(f'cannot write {self.rec.error}')
         self.ids = {}
-        topics = list(T.COMMAND_TOPICS) + list(T.STATE_TOPICS) + (['/clock'] if clock else [])
+        topics = (list(T.COMMAND_TOPICS) + list(T.STATE_TOPICS) + list(T.RECORD_TOPICS)
+                  + (['/clock'] if clock else []))
         for rel in topics:
             msg_type, _role, qos = T.TOPICS[rel]
             # exact CDR from our encoders: the recorder need not trim

@@ -25,6 +25,8 @@ TOPICS = {
     'nut_position': ('std_msgs/msg/Float64', 'state', RELIABLE_10),
     'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state', RELIABLE_10),
     'sim/joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
+    'sim/thread_state': ('leadscrew_sim/msg/ThreadState', 'record', RELIABLE_10),
+    'diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'diagnostics', RELIABLE_10),
     'limit_switch/min': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     'limit_switch/max': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     'home_switch': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
@@ -37,6 +39,8 @@ SWITCH_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'sw
 #: Topics in the order the node registers its recording channels.
 COMMAND_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'command')
 STATE_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'state')
+#: Topics that are recorded but not published: the thread contact and energy of every tick.
+RECORD_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'record')
 
 
 def resolve(topic, namespace='/'):

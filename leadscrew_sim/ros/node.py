@@ -196,6 +196,10 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
                      'position_command': self._on_position}
         self._pubs, self._rec_topic = {}, {}
         for topic, (type_name, role, qos) in TOPICS.items():
+            if role in ('record', 'diagnostics'):   # recorded only; diagnostics: see below
+                if role == 'record':
+                    self._rec_topic[topic] = self.resolve_topic_name(topic)
+                continue
             msg_type, profile = message_class(type_name), qos_profile(qos)
             if role == 'command':
                 ent = self.create_subscription(msg_type, topic, callbacks[topic], profile,
@@ -207,6 +211,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             self._rec_topic[topic] = ent.topic_name
         self._pub_clock = self._pubs.get('/clock')
         self._pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
+        self._rec_topic['diagnostics'] = self._pub_diag.topic_name
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/clear_fault', self._on_clear_fault)
         self._switches = None               # last published (min, max, home)
@@ -340,6 +345,9 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         if sampled:
             for topic, data in enc.truth(stamp, model.truth_values()):
                 self._emit(topic, data)
+            if self.recorder.active:
+                for topic, data in enc.analysis(stamp, model.analysis_values()):
+                    self.recorder.write(self._rec_topic[topic], data, stamp)
         if values is not None and self._desc is not None:
             self._desc.publish_tf(s_stamp, values[0], values[1], self.recorder)
 
@@ -390,7 +398,10 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             loop=self.loop, lateness=lateness,
             counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder,
             dropped=(inp.hold.dropped, self.delivery.dropped))
-        self._pub_diag.publish(serialize_message(arr))
+        data = serialize_message(arr)
+        self._pub_diag.publish(data)
+        if self.recorder.active:
+            self.recorder.write(self._rec_topic['diagnostics'], data, self._sim_now())
 
     def close(self):
         """Write the stats file, close the recorder."""

@@ -365,8 +365,8 @@ def test_tick_order(tf_run):
     for k in range(300):
         expected.append(('/torque_command', k * ms))
         expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
-                                                 '/thread_force', '/sim/joint_states', '/tf',
-                                                 '/clock')]
+                                                 '/thread_force', '/sim/joint_states',
+                                                 '/sim/thread_state', '/tf', '/clock')]
     assert seq == expected
 
 

@@ -46,6 +46,8 @@ TYPES = {
     '/nut_position': 'std_msgs/msg/Float64',
     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
     '/sim/joint_states': 'sensor_msgs/msg/JointState',
+    '/sim/thread_state': 'leadscrew_sim/msg/ThreadState',
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
     '/velocity_command': 'std_msgs/msg/Float64',
     '/position_command': 'std_msgs/msg/Float64',
     '/limit_switch/min': 'std_msgs/msg/Bool',
