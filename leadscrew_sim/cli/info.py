@@ -3,7 +3,7 @@ import os
 
 from .args import NS, Progress
 from .resim import Resim
-from ..io import cdr as C
+from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
 
@@ -37,7 +37,9 @@ def run(args):
                 timing[key] = data[key]
     print('timing: ' + (', '.join(f'{k} {v}' for k, v in timing.items()) if timing else
                         'no overrun/late-tick counts in the metadata'))
-    if not args.no_resim:
+    if rec.role_topic('sim/thread_state'):
+        _print_recorded(rec)
+    elif not args.no_resim:
         _print_resim(args, rec)
     return 0
 
@@ -84,19 +86,46 @@ def _print_states(rec):
         print(f'max |motor torque|: {max(tqs):.6g} N m')
 
 
+def _shares(sticks, contacts):
+    """Return the stuck share of the loaded steps and the share of each contact side."""
+    loaded = [s for s in sticks if s >= 0]
+    stick = sum(1 for s in loaded if s == 1) / len(loaded) if loaded else 0.0
+    n = max(1, len(contacts))
+    side = {name: sum(1 for c in contacts if c == k) / n
+            for k, name in ((1, 'leading'), (-1, 'trailing'), (0, 'backlash'))}
+    return stick, side
+
+
+def _print_energy(source, stick, side, e):
+    residual = (e['input_work'] + e['external_work'] - e['kinetic'] - e['potential']
+                - e['spring'] - e['friction_dissipation'] - e['damping_dissipation'])
+    print(f'({source}) thread stuck {100 * stick:.1f}% of loaded steps; contact ' +
+          ', '.join(f'{k} {100 * v:.1f}%' for k, v in side.items()))
+    print(f'energy: input work {e["input_work"]:.6g} J, friction dissipated '
+          f'{e["friction_dissipation"]:.6g} J, damping dissipated '
+          f'{e["damping_dissipation"]:.6g} J (balance residual {residual:.3g} J)')
+
+
+def _print_recorded(rec):
+    """Print the stick and contact shares and the energy balance [J] recorded in the file."""
+    topic = rec.role_topic('sim/thread_state')
+    sticks, contacts, last = [], [], None
+    for _t, tp, data in rec.messages:
+        if tp == topic:
+            _stamp, last = M.decode_analysis(data)
+            sticks.append(last['stick_a'])
+            contacts.append(last['contact_a'])
+    if last is not None:
+        _print_energy('recorded in sim/thread_state', *_shares(sticks, contacts), last)
+
+
 def _print_resim(args, rec):
     """Print the stick and contact fractions and the energy balance [J] of a re-simulation."""
     sim = Resim(rec)
     _new, outs, model = sim.run(keep=True, progress=Progress(sim.n_steps, 'info', args.quiet))
     if not outs:
         return
-    stick = sum(1 for o in outs if o.stuck) / len(outs)
-    side = {name: sum(1 for o in outs if o.contact == c) / len(outs)
-            for c, name in ((1, 'leading'), (-1, 'trailing'), (0, 'backlash'))}
-    e = model.energy()
-    print(f'(re-simulated from the recorded parameters and commands) thread stuck '
-          f'{100 * stick:.1f}% of steps; contact ' +
-          ', '.join(f'{k} {100 * v:.1f}%' for k, v in side.items()))
-    print(f'energy: input work {e["input_work"]:.6g} J, friction dissipated '
-          f'{e["friction_dissipation"]:.6g} J, damping dissipated '
-          f'{e["damping_dissipation"]:.6g} J (balance residual {e["residual"]:.3g} J)')
+    sticks = [-1.0 if o.normal_leading + o.normal_trailing <= 0.0 else float(o.stuck)
+              for o in outs]
+    _print_energy('re-simulated from the recorded parameters and commands',
+                  *_shares(sticks, [o.contact for o in outs]), model.energy())

@@ -1,4 +1,4 @@
-"""``plot``: one PNG with four panels of a leadscrew_sim recording (forces re-simulated)."""
+"""``plot``: one PNG with four panels of a leadscrew_sim recording (forces from the file)."""
 import math
 from pathlib import Path
 
@@ -6,6 +6,7 @@ import numpy as np
 
 from .args import CliError, NS, Progress
 from .resim import Resim
+from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 
 HELP = 'four-panel PNG of a leadscrew_sim recording'
@@ -25,18 +26,51 @@ def add_arguments(p):
     p.add_argument('--quiet', '-q', action='store_true')
 
 
+def _recorded(rec):
+    """Return (times [s], the COLUMNS) from sim/joint_states and sim/thread_state, or None."""
+    truth_topic, thread_topic = rec.role_topic('sim/joint_states'), rec.role_topic(
+        'sim/thread_state')
+    if not (truth_topic and thread_topic):
+        return None
+    truth, thread = {}, {}
+    for _t, topic, data in rec.messages:
+        if topic == truth_topic:
+            stamp, _names, pos, vel, eff = C.decode_joint_state(data)
+            truth[stamp] = (pos[1], pos[2], vel[2], eff[0])
+        elif topic == thread_topic:
+            stamp, v = M.decode_analysis(data)
+            thread[stamp] = (v['normal_leading_a'], v['normal_trailing_a'], v['friction_a'],
+                             v['contact_a'], v['stick_a'] == 1.0)
+    stamps = sorted(set(truth) & set(thread))
+    if not stamps:
+        return None
+    rows = [truth[s] + thread[s] for s in stamps]
+    names = ('screw_angle', 'nut_position', 'nut_velocity', 'motor_torque', 'normal_leading',
+             'normal_trailing', 'friction_force', 'contact', 'stuck')
+    col = {name: np.array([r[i] for r in rows], dtype=float) for i, name in enumerate(names)}
+    return np.array(stamps) / NS, col
+
+
 def run(args):
-    """Write one PNG with four panels (forces re-simulated from the file)."""
+    """Write one PNG with four panels (from the file, or re-simulated for an older file)."""
     rec = Recording(args.file)
     sim = Resim(rec)
-    _new, outs, _model = sim.run(keep=True, progress=Progress(sim.n_steps, 'plot', args.quiet))
-    if not outs:
-        raise CliError(f'{args.file}: no steps to plot')
+    recorded = _recorded(rec)
+    if recorded is not None:
+        t, col = recorded
+        source = 'recorded'
+    else:
+        _new, outs, _model = sim.run(keep=True,
+                                     progress=Progress(sim.n_steps, 'plot', args.quiet))
+        if not outs:
+            raise CliError(f'{args.file}: no steps to plot')
+        t = (sim.t0 + sim.dt_ns * np.arange(1, len(outs) + 1)) / NS
+        col = {name: np.array([getattr(o, name) for o in outs], dtype=float)
+               for name in COLUMNS}
+        source = 're-simulated from the recorded parameters and commands'
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    t = (sim.t0 + sim.dt_ns * np.arange(1, len(outs) + 1)) / NS
-    col = {name: np.array([getattr(o, name) for o in outs], dtype=float) for name in COLUMNS}
     w_in, h_in = args.width / args.dpi, args.height / args.dpi
     fig, axs = plt.subplots(2, 2, figsize=(w_in, h_in), dpi=args.dpi)
     fig.suptitle(f'{Path(args.file).name}: preset {sim.meta.get("preset", "?")}, '
@@ -59,8 +93,7 @@ def run(args):
     except OSError as exc:
         raise CliError(f'cannot write {out}: {exc.strerror or exc}') from None
     plt.close(fig)
-    print(f'wrote {out} ({args.width}x{args.height} px; forces and contact re-simulated '
-          'from the recorded parameters and commands)')
+    print(f'wrote {out} ({args.width}x{args.height} px; forces and contact {source})')
     return 0
 
 
@@ -93,7 +126,7 @@ def _force_panel(ax, t, col):
     ax.set_xlabel('time [s]')
     ax.set_ylabel('force [N]')
     ax.legend(fontsize=7, loc='best')
-    ax.set_title('thread forces (re-simulated), stick shaded, contact side on top', fontsize=9)
+    ax.set_title('thread forces of nut A, stick shaded, contact side on top', fontsize=9)
 
 
 def _backlash_panel(ax, col, p):

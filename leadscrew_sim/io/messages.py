@@ -18,8 +18,8 @@ state topic is an entry in :data:`leadscrew_sim.io.topics.TOPICS` and one
 here. The value names are the columns of ``LeadScrewModel.run()`` (the
 sensor ones with the prefix ``sensor_`` where a true value has the same name).
 """
-from .cdr import (clock_template, CdrWriter, float64_template, joint_state_template, Template,
-                  wrench_template)
+from .cdr import (CdrReader, clock_template, CdrWriter, float64_template, joint_state_template,
+                  Template, wrench_template)
 
 #: What the sensors report in one tick: rad, m, rad/s, m/s, N m, N.
 SENSOR_VALUES = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity',
@@ -85,6 +85,14 @@ def analysis_template():
     stamp_off = w.stamp(0, 0)
     w.string('')
     return Template(w.buf, stamp_off, [w.f64(0.0) for _ in ANALYSIS_VALUES])
+
+
+def decode_analysis(data):
+    """Return (stamp_ns, {name: value} of :data:`ANALYSIS_VALUES`) of a sim/thread_state."""
+    r = CdrReader(data)
+    stamp = r.stamp()
+    r.string()
+    return stamp, {name: r.f64() for name in ANALYSIS_VALUES}
 
 
 class StateEncoder:

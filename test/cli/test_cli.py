@@ -244,10 +244,11 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
 
 
 def test_info(sim_file):
-    """Info shows counts, the position range and the re-simulated stick fraction."""
+    """Info shows counts, the position range and the stick fraction recorded in the file."""
     r = cli_ok('info', sim_file)
     assert re.search(r'/joint_states\s+sensor_msgs/msg/JointState\s+1000', r.stdout)
     assert 'nut position: min' in r.stdout and 'stuck' in r.stdout
+    assert '(recorded in sim/thread_state)' in r.stdout
     assert 'duration:  1.000000 s' in r.stdout
 
 

@@ -48,7 +48,7 @@ def _mcap_ros2(path):
 
 
 def test_both_readers_decode_every_tick_alike(run):
-    """rosbags and mcap_ros2 decode one sim/thread_state per tick, stamped at its log time."""
+    """Both rosbags and mcap_ros2 decode one sim/thread_state per tick, stamped at its log time."""
     a, b = _rosbags(run), _mcap_ros2(run)
     assert len(a) == len(b) == 1000
     for (ta, ma), (tb, mb) in zip(a, b):
