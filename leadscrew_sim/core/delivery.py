@@ -79,7 +79,15 @@ class StateDelivery:
         return bool(self._line)
 
     def due(self, tick):
-        """Return [(stamp_ns, values)] of the samples delivered at the end of tick ``tick``."""
+        """
+        Return [(stamp_ns, values)] of the samples delivered at the end of a tick.
+
+        Parameters
+        ----------
+        tick : int
+            The tick's number since start.
+
+        """
         line = self._line
         out = []
         while line and line[0][0] <= tick:

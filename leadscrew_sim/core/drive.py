@@ -314,3 +314,57 @@ def loop_response(p, dt=1e-3, nsub=None):
                 f_vel=bandwidth(a_vel[1:, 1:], b_vel[1:], np.array([1.0, 0.0])),
                 f_pos=bandwidth(a_pos, b_pos, np.array([1.0, 0.0, 0.0])),
                 overshoot=max(0.0, ys.max() - 1.0), settling_time=settle)
+
+
+#: Mode names accepted where a mode may be named, with their codes.
+MODE_CODES = {name: code for code, name in MODE_NAMES.items()}
+
+
+def mode_code(mode):
+    """
+    Return the MODE_* code of a mode code or name; raise ValueError otherwise.
+
+    Parameters
+    ----------
+    mode : int or str
+        A MODE_* code or a name of :data:`MODE_CODES`.
+
+    """
+    if isinstance(mode, str):
+        if mode not in MODE_CODES:
+            raise ValueError(f'unknown drive mode {mode!r} (known: {", ".join(MODE_CODES)})')
+        return MODE_CODES[mode]
+    if isinstance(mode, bool) or mode not in MODE_NAMES:
+        raise ValueError(f'unknown drive mode {mode!r} (codes: {sorted(MODE_NAMES)})')
+    return int(mode)
+
+
+def command_rows(commands, hand_sign):
+    """
+    Return validated command rows (n, 4) in the q sense, unused fields 0.
+
+    Parameters
+    ----------
+    commands : array_like of float, shape (n, 4)
+        (mode, position [rad], velocity [rad/s], effort [N m]) rows, theta sense.
+    hand_sign : float
+        h of q = h theta.
+
+    """
+    c = np.array(commands, dtype=float)
+    if c.ndim != 2 or c.shape[1] != L.N_CMD:
+        raise ValueError(f'commands must have shape (n, {L.N_CMD}): mode, position, '
+                         f'velocity, effort; got {c.shape}')
+    original = c.copy() if len(c) < 2 else None
+    bad = prepare_commands(c, hand_sign)
+    if bad >= 0:
+        row = (original if original is not None else np.array(commands, float))[bad]
+        mode = row[0]
+        if mode not in MODE_NAMES:
+            raise ValueError(f'command {bad}: unknown drive mode {mode!r} '
+                             f'(codes: {sorted(MODE_NAMES)})')
+        need = {MODE_POSITION: 'position', MODE_VELOCITY: 'velocity',
+                MODE_TORQUE: 'effort'}.get(int(mode))
+        raise ValueError(f'command {bad}: mode {MODE_NAMES[int(mode)]} needs a finite '
+                         f'{need} and finite feed-forwards; got {list(row)}')
+    return c

@@ -22,17 +22,18 @@ from . import kernel as K
 from . import layout as L
 from . import sensors as SN
 from .faults import SimulationFault
+from .views import ReportedValues
 from .output import energy_balance, series_result, step_output, stored_energy
 from .packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
 from .params import ParameterError, ScrewParams
 
 #: Mode names accepted by :meth:`LeadScrewModel.command`, with their codes.
-MODE_CODES = {name: code for code, name in D.MODE_NAMES.items()}
+MODE_CODES = D.MODE_CODES
 
 _NO_COMMANDS = np.zeros((0, L.N_CMD))   # run_series without command rows: torque mode
 
 
-class LeadScrewModel:
+class LeadScrewModel(ReportedValues):
     """
     A lead screw axis: validated parameters, a state vector and step().
 
@@ -251,7 +252,7 @@ class LeadScrewModel:
             if torques is not None:
                 raise ValueError('give torques or commands, not both (a torque mode command '
                                  'row carries its torque as effort)')
-            cmds = self._command_rows(commands)   # validated, q sense
+            cmds = D.command_rows(commands, self.params.hand_sign)   # validated, q sense
             fe = (np.zeros(len(cmds)) if external_forces is None
                   else np.ascontiguousarray(external_forces, dtype=float))
             if fe.shape != (len(cmds),) or not np.isfinite(fe).all():
@@ -300,7 +301,7 @@ class LeadScrewModel:
             If the mode is unknown or its command is not finite (nothing changes).
 
         """
-        code = self._mode_code(mode)
+        code = D.mode_code(mode)
         q, w, t = float(position), float(velocity), float(effort)
         w = 0.0 if w != w else w                # NaN feed-forwards: none
         t = 0.0 if t != t else t
@@ -448,37 +449,6 @@ class LeadScrewModel:
             o[L.O_JX] = s[L.S_XS]
         o[L.O_JV] = 0.0
 
-    @staticmethod
-    def _mode_code(mode):
-        """Return the drive.MODE_* code of a mode code or name; raise ValueError otherwise."""
-        if isinstance(mode, str):
-            if mode not in MODE_CODES:
-                raise ValueError(f'unknown drive mode {mode!r} (known: {", ".join(MODE_CODES)})')
-            return MODE_CODES[mode]
-        if isinstance(mode, bool) or mode not in D.MODE_NAMES:
-            raise ValueError(f'unknown drive mode {mode!r} (codes: {sorted(D.MODE_NAMES)})')
-        return int(mode)
-
-    def _command_rows(self, commands):
-        """Return validated command rows (n, 4) in the q sense, unused fields 0."""
-        c = np.array(commands, dtype=float)
-        if c.ndim != 2 or c.shape[1] != L.N_CMD:
-            raise ValueError(f'commands must have shape (n, {L.N_CMD}): mode, position, '
-                             f'velocity, effort; got {c.shape}')
-        original = c.copy() if len(c) < 2 else None
-        bad = D.prepare_commands(c, self.params.hand_sign)
-        if bad >= 0:
-            row = (original if original is not None else np.array(commands, float))[bad]
-            mode = row[0]
-            if mode not in D.MODE_NAMES:
-                raise ValueError(f'command {bad}: unknown drive mode {mode!r} '
-                                 f'(codes: {sorted(D.MODE_NAMES)})')
-            need = {D.MODE_POSITION: 'position', D.MODE_VELOCITY: 'velocity',
-                    D.MODE_TORQUE: 'effort'}.get(int(mode))
-            raise ValueError(f'command {bad}: mode {D.MODE_NAMES[int(mode)]} needs a finite '
-                             f'{need} and finite feed-forwards; got {list(row)}')
-        return c
-
     def _check_fault(self):
         """Raise the latched SimulationFault again, if any (until reset())."""
         if self.fault:
@@ -497,57 +467,6 @@ class LeadScrewModel:
     def time(self):
         """Return the simulated time [s]."""
         return self.state[L.S_T]
-
-    def joint_values(self):
-        """
-        Return what the sensors report as a tuple of floats (the node's per-tick fast path).
-
-        (screw_angle [rad], nut_position [m], screw_velocity [rad/s],
-        nut_velocity [m/s], motor_torque [N m], axial_force [N]): the screw
-        joint from the motor encoder, the nut joint from the linear scale (or
-        the encoder through the lead without one), the applied motor torque and
-        the axial thread force. With ideal sensors these are the true values of
-        :meth:`output`.
-        """
-        o, hs = self.out.tolist(), self.params.hand_sign
-        return (hs * o[L.O_JQ], o[L.O_JX], hs * o[L.O_JW], o[L.O_JV], hs * o[L.O_TE] + 0.0,
-                o[L.O_FAX])
-
-    def truth_values(self):
-        """
-        Return the exact state of every body as a tuple of floats (``sim/joint_states``).
-
-        (motor angle [rad], screw angle [rad], nut A position [m], half-nut B
-        position [m], motor rate [rad/s], screw rate [rad/s], nut A velocity
-        [m/s], half-nut B velocity [m/s], applied motor torque [N m], thread
-        torque on the screw [N m], axial thread force on nut A [N], on half-nut
-        B [N], on both [N]); without a split nut B follows A and carries no force.
-        """
-        s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
-        cl, sl = float(self._P[L.P_CL]), float(self._P[L.P_SL])
-        f_a = (o[L.O_NLA] - o[L.O_NUA]) * cl + o[L.O_FFA] * sl
-        return (hs * s[L.S_QM], hs * s[L.S_Q], s[L.S_XA], s[L.S_XB], hs * s[L.S_WM],
-                hs * s[L.S_DQ], s[L.S_VA], s[L.S_VB], hs * o[L.O_TE] + 0.0, hs * o[L.O_TTH],
-                f_a, o[L.O_FAX] - f_a, o[L.O_FAX])
-
-    def analysis_values(self):
-        """
-        Return the thread contact of both nut bodies and the energy terms, as floats.
-
-        (contact, stick, leading and trailing flank normal force [N], friction
-        force [N] and sliding velocity [m/s] of nut A, the same six of half-nut
-        B, then input_work, external_work, kinetic, potential, spring,
-        friction_dissipation, damping_dissipation [J] of :meth:`energy`):
-        contact 1 leading flank, -1 trailing, 0 in the backlash; stick 1 stuck,
-        0 sliding, -1 no load.
-        """
-        o = self.out.tolist()
-        e = self.energy()
-        return (o[L.O_CONTA], o[L.O_STICKA], o[L.O_NLA], o[L.O_NUA], o[L.O_FFA], o[L.O_VSA],
-                o[L.O_CONTB], o[L.O_STICKB], o[L.O_NLB], o[L.O_NUB], o[L.O_FFB], o[L.O_VSB],
-                *(float(e[k]) for k in ('input_work', 'external_work', 'kinetic', 'potential',
-                                        'spring', 'friction_dissipation',
-                                        'damping_dissipation')))
 
     def output(self):
         """Return the StepOutput of the current state and last step."""

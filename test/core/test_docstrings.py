@@ -13,13 +13,14 @@ import re
 import pytest
 
 from leadscrew_sim import core
-from leadscrew_sim.core import commands, fields, presets
+from leadscrew_sim.core import commands, delivery, drive, fields, presets
 from leadscrew_sim.core.settings import RunSettings
 
 #: The public core API: model construction, stepping, running, parameters.
 API = [core.LeadScrewModel, core.ScrewParams, core.load_preset, presets.preset_path,
        presets.read_parameter_file, presets.physics_subset, fields.field,
-       commands.CommandHold, RunSettings]
+       commands.CommandHold, RunSettings, delivery.StateDelivery, delivery.lost_samples,
+       drive.command_rows, drive.mode_code]
 
 
 def documented_parameters(doc):
