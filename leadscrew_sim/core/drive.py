@@ -21,8 +21,8 @@ torque limit, injected) switches the torque off until the model clears it.
 
 This module holds the constants, the compiled pieces the kernel calls
 (:func:`update_period`, :func:`velocity_loop`), :func:`prepare_commands`
-(validates and converts command rows for the model), :func:`pack_drive` (the
-drive's slots of the parameter vector) and the linear design helpers
+(validates and converts command rows for the model; :func:`command_rows`,
+:func:`mode_code`) and the linear design helpers
 (:func:`design_gains`, :func:`loop_response`) that document each preset's
 bandwidths.
 """
@@ -137,37 +137,6 @@ def prepare_commands(c, hs):
         # a torque command keeps its sign bit (as the torque path negates a torque)
         c[k, 3] = hs * c[k, 3] if mode == MODE_TORQUE else hs * c[k, 3] + 0.0
     return -1
-
-
-def pack_drive(p, v, q0):
-    """
-    Fill the drive's slots of the parameter vector v from ScrewParams p.
-
-    Parameters
-    ----------
-    p : ScrewParams
-        The parameters.
-    v : numpy.ndarray
-        The parameter vector (layout.NP floats); P_RT must be set.
-    q0 : float
-        Motor angle of the initial state [rad], q sense: the linear scale's reference.
-
-    """
-    v[L.P_DRATE] = p.drive_rate
-    v[L.P_DKP] = p.position_gain
-    v[L.P_DKV] = p.velocity_gain
-    v[L.P_DTI] = p.velocity_integral_time
-    v[L.P_DVMAX] = p.velocity_limit
-    v[L.P_DQSD] = p.quick_stop_deceleration
-    v[L.P_DFEL] = p.following_error_limit
-    v[L.P_DTLT] = p.torque_limit_time
-    v[L.P_DSCALE] = 1.0 if p.drive_feedback == 'linear_scale' else 0.0
-    v[L.P_DQ0] = q0
-    v[L.P_DX0] = p.initial_position
-    v[L.P_LMIN] = p.limit_min_position
-    v[L.P_LMAX] = p.limit_max_position
-    v[L.P_HOME] = p.home_position
-    v[L.P_HYST] = p.switch_hysteresis
 
 
 def effective_rate(nsub, dt, drive_rate):

@@ -2,7 +2,9 @@
 The parameter vector of the kernel and the substep the parameters need.
 
 :func:`pack_params` flattens a :class:`~.params.ScrewParams` into the float64
-vector the kernel reads (layout in :mod:`.layout`), with the initial seating
+vector the kernel reads (layout in :mod:`.layout`; the friction law's block by
+:mod:`.friction`, the drive's by :func:`pack_drive`, the sensors' by
+:mod:`.sensors`), with the initial seating
 (:func:`initial_seating`) that references the drive's position scale.
 :func:`stiffest_mode` linearises the chain and :func:`auto_substep` derives the
 largest stable substep from it; :data:`MAX_SUBSTEPS_PER_STEP` bounds how many
@@ -12,7 +14,6 @@ import math
 
 import numpy as np
 
-from . import drive as D
 from . import friction as F
 from . import layout as L
 from . import sensors as SN
@@ -67,8 +68,39 @@ def pack_params(p):
     v[L.P_FEXT] = p.external_force
     F.pack_friction(p, v)
     SN.pack_sensors(p, v)
-    D.pack_drive(p, v, initial_seating(p, v)[0])
+    pack_drive(p, v, initial_seating(p, v)[0])
     return v
+
+
+def pack_drive(p, v, q0):
+    """
+    Fill the drive's slots of the parameter vector v from ScrewParams p.
+
+    Parameters
+    ----------
+    p : ScrewParams
+        The parameters.
+    v : numpy.ndarray
+        The parameter vector (layout.NP floats); P_RT must be set.
+    q0 : float
+        Motor angle of the initial state [rad], q sense: the linear scale's reference.
+
+    """
+    v[L.P_DRATE] = p.drive_rate
+    v[L.P_DKP] = p.position_gain
+    v[L.P_DKV] = p.velocity_gain
+    v[L.P_DTI] = p.velocity_integral_time
+    v[L.P_DVMAX] = p.velocity_limit
+    v[L.P_DQSD] = p.quick_stop_deceleration
+    v[L.P_DFEL] = p.following_error_limit
+    v[L.P_DTLT] = p.torque_limit_time
+    v[L.P_DSCALE] = 1.0 if p.drive_feedback == 'linear_scale' else 0.0
+    v[L.P_DQ0] = q0
+    v[L.P_DX0] = p.initial_position
+    v[L.P_LMIN] = p.limit_min_position
+    v[L.P_LMAX] = p.limit_max_position
+    v[L.P_HOME] = p.home_position
+    v[L.P_HYST] = p.switch_hysteresis
 
 
 def initial_seating(p, v):
