@@ -165,6 +165,16 @@ def readings(P, S, qm, xa):
 
 
 @kernel_jit
+def _take(S, i_read, i_vel, reading, td, beta, first):
+    """Store a reading in S[i_read] and its filtered difference quotient in S[i_vel]."""
+    if first:
+        S[i_vel] = 0.0
+    else:
+        S[i_vel] += beta * ((reading - S[i_read]) / td - S[i_vel])
+    S[i_read] = reading
+
+
+@kernel_jit
 def sample(P, S, qm, wm, xa, va, td, beta, first):
     """
     Take one sample of both sensors into S (S_EQ .. S_VS) and count it (S_NSAMP).
@@ -187,12 +197,7 @@ def sample(P, S, qm, wm, xa, va, td, beta, first):
         S[L.S_EQ] = qm
         S[L.S_EW] = wm
     else:
-        r = _encoder(P, qm, z_enc)
-        if first:
-            S[L.S_EW] = 0.0
-        else:
-            S[L.S_EW] += beta * ((r - S[L.S_EQ]) / td - S[L.S_EW])
-        S[L.S_EQ] = r
+        _take(S, L.S_EQ, L.S_EW, _encoder(P, qm, z_enc), td, beta, first)
     # linear scale
     if P[L.P_SFRZ] > 0.5 and not first:
         S[L.S_VS] = 0.0
@@ -200,18 +205,7 @@ def sample(P, S, qm, wm, xa, va, td, beta, first):
         S[L.S_XS] = xa
         S[L.S_VS] = va
     else:
-        x = _scale(P, xa, z_sc)
-        if first:
-            S[L.S_VS] = 0.0
-        else:
-            S[L.S_VS] += beta * ((x - S[L.S_XS]) / td - S[L.S_VS])
-        S[L.S_XS] = x
-
-
-def filter_gain(P, td):
-    """Return the velocity filter's gain per sample: 1 - exp(-td / T_f), 1 without a filter."""
-    tf = P[L.P_VFT]
-    return 1.0 if tf <= 0.0 else 1.0 - math.exp(-td / tf)
+        _take(S, L.S_XS, L.S_VS, _scale(P, xa, z_sc), td, beta, first)
 
 
 def pack_sensors(p, v):

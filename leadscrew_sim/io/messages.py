@@ -142,50 +142,36 @@ class StateEncoder:
                          for topic, (stamped, g, names) in values.items() if g == group)
             for group in order}
 
-    def sensor(self, stamp_ns, values):
+    def encode(self, group, stamp_ns, values):
         """
-        Return [(topic, bytes)] of the sensor topics of one sample.
+        Return [(topic, bytes)] of the topics of a group for one tick.
 
         Parameters
         ----------
+        group : str
+            ``'sensor'`` (values of :data:`SENSOR_VALUES`; stamp: the sampling
+            time), ``'truth'`` (:data:`TRUTH_VALUES`) or ``'analysis'``
+            (:data:`ANALYSIS_VALUES`, the recorded-only topic).
         stamp_ns : int
-            The sampling time [ns].
+            The stamp [ns].
         values : sequence of float
-            The values of :data:`SENSOR_VALUES`, in that order.
+            The group's values, in the order of its tuple.
 
         """
         return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
-                for topic, template, stamped, index, _n in self._plan['sensor']]
+                for topic, template, stamped, index, _n in self._plan[group]]
+
+    def sensor(self, stamp_ns, values):
+        """Return :meth:`encode` of the sensor topics of one sample (stamp: its sampling time)."""
+        return self.encode('sensor', stamp_ns, values)
 
     def truth(self, stamp_ns, values):
-        """
-        Return [(topic, bytes)] of the truth topics of one tick.
-
-        Parameters
-        ----------
-        stamp_ns : int
-            The tick's time [ns].
-        values : sequence of float
-            The values of :data:`TRUTH_VALUES`, in that order.
-
-        """
-        return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
-                for topic, template, stamped, index, _n in self._plan['truth']]
+        """Return :meth:`encode` of the truth topics of one tick."""
+        return self.encode('truth', stamp_ns, values)
 
     def analysis(self, stamp_ns, values):
-        """
-        Return [(topic, bytes)] of the recorded-only analysis topic of one tick.
-
-        Parameters
-        ----------
-        stamp_ns : int
-            The tick's time [ns].
-        values : sequence of float
-            The values of :data:`ANALYSIS_VALUES`, in that order.
-
-        """
-        return [(topic, template(stamp_ns if stamped else None, [values[i] for i in index]))
-                for topic, template, stamped, index, _n in self._plan['analysis']]
+        """Return :meth:`encode` of the recorded-only analysis topic of one tick."""
+        return self.encode('analysis', stamp_ns, values)
 
     def rows(self, group, stamps_ns, columns):
         """
