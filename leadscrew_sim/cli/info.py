@@ -2,7 +2,7 @@
 import os
 
 from .args import NS, Progress
-from .resim import Resim
+from .replay import Resim
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
@@ -122,10 +122,12 @@ def _print_recorded(rec):
 def _print_resim(args, rec):
     """Print the stick and contact fractions and the energy balance [J] of a re-simulation."""
     sim = Resim(rec)
-    _new, outs, model = sim.run(keep=True, progress=Progress(sim.n_steps, 'info', args.quiet))
-    if not outs:
+    model = sim.model()
+    sticks, contacts = [], []
+    for _seg, cols in sim.blocks(model, progress=Progress(sim.n_steps, 'info', args.quiet)):
+        sticks += cols['stick_a'].tolist()
+        contacts += cols['contact'].tolist()
+    if not contacts:
         return
-    sticks = [-1.0 if o.normal_leading + o.normal_trailing <= 0.0 else float(o.stuck)
-              for o in outs]
     _print_energy('re-simulated from the recorded parameters and commands',
-                  *_shares(sticks, [o.contact for o in outs]), model.energy())
+                  *_shares(sticks, contacts), model.energy())

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from .args import CliError, NS, Progress
-from .resim import Resim
+from .replay import Resim
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 
@@ -60,13 +60,14 @@ def run(args):
         t, col = recorded
         source = 'recorded'
     else:
-        _new, outs, _model = sim.run(keep=True,
-                                     progress=Progress(sim.n_steps, 'plot', args.quiet))
-        if not outs:
+        model = sim.model()
+        parts = [cols for _seg, cols in sim.blocks(
+            model, progress=Progress(sim.n_steps, 'plot', args.quiet))]
+        if not parts:
             raise CliError(f'{args.file}: no steps to plot')
-        t = (sim.t0 + sim.dt_ns * np.arange(1, len(outs) + 1)) / NS
-        col = {name: np.array([getattr(o, name) for o in outs], dtype=float)
+        col = {name: np.concatenate([p[name] for p in parts]).astype(float)
                for name in COLUMNS}
+        t = (sim.t0 + sim.dt_ns * np.arange(1, len(col['nut_position']) + 1)) / NS
         source = 're-simulated from the recorded parameters and commands'
     import matplotlib
     matplotlib.use('Agg')

@@ -126,6 +126,29 @@ class Template:
                 np.uint8).reshape(n, 8)
         return out
 
+    def columns(self, rows):
+        """
+        Return the doubles of messages of this layout: an array (n, len(offsets)), or None.
+
+        The inverse of :meth:`rows`; ``rows`` is a uint8 array (n, message
+        length). None when a message differs from the template anywhere
+        but in its stamp and doubles (another layout: decode it field by field).
+        """
+        rows = np.asarray(rows, dtype=np.uint8)
+        if rows.ndim != 2 or rows.shape[1] != len(self.tmpl):
+            return None
+        fixed = np.ones(len(self.tmpl), dtype=bool)
+        for off in self.offsets:
+            fixed[off:off + 8] = False
+        if self.stamp_off is not None:
+            fixed[self.stamp_off:self.stamp_off + 8] = False
+        if not (rows[:, fixed] == np.frombuffer(self.tmpl, dtype=np.uint8)[fixed]).all():
+            return None
+        out = np.empty((len(rows), len(self.offsets)))
+        for j, off in enumerate(self.offsets):
+            out[:, j] = rows[:, off:off + 8].copy().view('<f8').ravel()
+        return out
+
 
 def joint_state_template(names, n_pos, n_vel, n_eff):
     """Template of a sensor_msgs/JointState with these names and array lengths."""

@@ -1,0 +1,386 @@
+"""
+Re-simulation of a recording: its commands through the model, in blocks.
+
+The commands go through :class:`leadscrew_sim.core.commands.CommandHold`,
+the node's rules (validation, zero-order hold, timeout, delay and loss), and
+act on the steps :data:`~leadscrew_sim.core.commands.COMMAND_LOG_TIME` says.
+That pass gives the drive command row of every step (:meth:`Resim.inputs`);
+the model then runs each stretch between parameter updates, resets and
+fault clearings in one compiled call. ``resim``, ``info``, ``plot`` and
+``identify`` re-simulate through :class:`Resim`.
+"""
+import math
+
+import numpy as np
+
+from .args import CliError, NS
+from .replay_inputs import CommandPass, MODEL_EVENTS
+from ..core import layout as L
+from ..core.delivery import StateDelivery
+from ..core.params import ParameterError, ScrewParams
+from ..io import messages as M, topics as T
+from ..io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
+                           run_setting, UPDATE_RECORD)
+from ..io.tick_writer import Events, Stream, write_block
+
+
+class Resim:
+    """
+    Re-run a leadscrew_sim recording through the model.
+
+    Commands (torque, velocity and position commands, joint_commands,
+    external_force), parameter updates and resets are applied in log-time
+    order: everything logged at or before ``t0 + k dt`` acts on step k (the
+    node's rule); commands older than ``command_timeout`` (sim time) time out
+    as in the node's stepped and lockstep modes. States are produced at
+    ``t0 + (k + 1) dt`` every ``publish_decimation`` steps.
+
+    A reset or parameter update logged at the same time as messages takes its
+    place among them from ``messages_at_log_time`` (the number of messages of
+    that log time the node recorded before it; the file order of the messages
+    is their recording order). Without that key it comes after them.
+
+    Parameters
+    ----------
+    rec : Recording
+        A leadscrew_sim recording with its messages.
+    phys_overrides : dict, optional
+        Physics parameters replacing the recorded ones (also in every update).
+
+    """
+
+    def __init__(self, rec, phys_overrides=None):
+        """Read parameters, run settings, commands and recorded states from ``rec``."""
+        rec.require_ours('resim')
+        meta = rec.record(PARAMS_RECORD)
+        self.rec = rec
+        self.meta = meta
+        self.overrides = dict(phys_overrides or {})
+        try:
+            params, self.missing = params_from_record(meta)
+        except ParameterError as exc:
+            raise CliError(f'{rec.path}: recorded {exc}') from None
+        self.params = ScrewParams.from_dict(self.overrides, base=params) \
+            if self.overrides else params
+        try:
+            rate = float(run_setting(meta, 'update_rate', 1000.0))
+            self.dt_ns = int(meta.get('dt_ns') or round(NS / rate))
+            self.t0 = int(meta.get('t0_ns', 0))
+            self.decimation = max(1, run_setting(meta, 'publish_decimation', 1))
+            self.timeout = run_setting(meta, 'command_timeout', 0.0)
+        except ValueError as exc:
+            raise CliError(f'{rec.path}: bad run settings in the parameters record: '
+                           f'{exc}') from None
+        self.prefix = run_setting(meta, 'joint_prefix', '')
+        self.joint_command_mode = run_setting(meta, 'joint_command_mode', 'auto')
+        self.clock_mode = run_setting(meta, 'clock_mode', '')
+        self.topics = {rel: rec.role_topic(rel) for rel in T.COMMAND_TOPICS + T.STATE_TOPICS}
+        self.events = []            # (log_time [ns], kind, payload) in log-time order
+        self.states = {}            # rel -> ([step index], [bytes]) of the recorded states
+        order = self._read_messages()
+        order += self._read_records()
+        index = sorted(range(len(self.events)), key=order.__getitem__)
+        self.events = [self.events[i] for i in index]
+        last_state = max((max(ks) for ks, _d in self.states.values() if ks), default=-1)
+        if last_state < 0:
+            last_cmd = max([(e[0] - self.t0) // self.dt_ns for e in self.events] or [-1])
+            last_state = last_cmd + 1
+        self.n_steps = max(0, last_state)
+        self.rejected = 0
+        self._inputs = None
+
+    def _read_messages(self):
+        """Collect the commands and the recorded states; return the commands' sort keys."""
+        by_topic = {t: rel for rel, t in self.topics.items() if t}
+        order = []                  # (log time, rank among the messages of that log time)
+        same_t, rank = None, 0
+        for log_time, topic, data in self.rec.messages:
+            if log_time != same_t:
+                same_t, rank = log_time, 0
+            rank += 1
+            rel = by_topic.get(topic)
+            if rel in T.COMMAND_TOPICS:
+                self.events.append((log_time, rel, data))
+                order.append((log_time, rank))
+            elif rel in T.STATE_TOPICS:
+                k, r = divmod(log_time - self.t0, self.dt_ns)
+                if r == 0 and k > 0:
+                    ks, datas = self.states.setdefault(rel, ([], []))
+                    if ks and ks[-1] == k:      # one state per tick: the last recorded
+                        datas[-1] = data
+                    else:
+                        ks.append(k)
+                        datas.append(data)
+        return order
+
+    def _read_records(self):
+        """Collect the parameter updates and resets; return their sort keys."""
+        order = []
+        for name, data in self.rec.metadata:
+            if name in MODEL_EVENTS and 'log_time_ns' in data:
+                try:
+                    log_time = int(data['log_time_ns'])
+                    before = int(data.get('messages_at_log_time', -1))
+                except ValueError as exc:
+                    raise CliError(f'{self.rec.path}: bad "{name}" metadata record: '
+                                   f'{exc}') from None
+                self.events.append((log_time, name, data))
+                # after the first `before` messages of its log time; else after all
+                order.append((log_time, before + 0.5 if before >= 0 else math.inf))
+        return order
+
+    # ----------------------------------------------------------------- inputs
+    def inputs(self):
+        """
+        Return the drive command of every step, as the node's CommandHold delivered it.
+
+        Returns
+        -------
+        segments : list of Segment
+            The stretches between model events (parameter updates, resets,
+            fault clearings), in order; each segment's ``groups`` are the
+            event groups of its steps: ``(e0, e1, k, n)``, events ``e0 .. e1 -
+            1`` of :attr:`events`, the first acting on step ``k``; ``n`` > 0: a
+            run of ``n`` steps with one Float64 drive command each, else the
+            events of step ``k``.
+        commands : numpy.ndarray, shape (n_steps, 4)
+            The drive command rows of ``model.run`` (theta sense); a row with a
+            NaN mode takes the command the model holds (the steps of a segment
+            before its first new command).
+        forces : numpy.ndarray, shape (n_steps,)
+            The external force of each step [N].
+
+        The result is computed once; it does not depend on the physics
+        parameters the model runs with (only on the recorded fault, delay
+        and timeout settings and the axis's lead and initial position).
+        """
+        if self._inputs is None:
+            self._inputs = CommandPass(self).build()
+        return self._inputs
+
+    # ------------------------------------------------------------- the model
+    def model(self, overrides=None):
+        """Return a new model with the recorded parameters and ``overrides`` (names: values)."""
+        from ..core.model import LeadScrewModel
+        params = ScrewParams.from_dict(overrides, base=self.params) if overrides else self.params
+        return LeadScrewModel(params, dt=self.dt_ns / NS)
+
+    def blocks(self, model, line=None, overrides=None, progress=None):
+        """
+        Run the segments through ``model``; yield (segment, columns of ``model.run``).
+
+        Parameters
+        ----------
+        model : LeadScrewModel
+            A new model (:meth:`model`).
+        line : StateDelivery, optional
+            Follows the recorded fault updates and resets too.
+        overrides : dict, optional
+            Physics parameters kept across the recorded updates.
+        progress : Progress, optional
+
+        """
+        segments, commands, forces = self.inputs()
+        keep = set(self.overrides) | set(overrides or ())
+        hs = model.params.hand_sign
+        for seg in segments:
+            for kind, data in seg.events:
+                self._apply_model(kind, data, model, line, keep)
+            if seg.k1 <= seg.k0:
+                continue
+            rows = commands[seg.k0:seg.k1]
+            held = np.isnan(rows[:, 0])
+            if held.any():
+                s = model.state
+                rows = rows.copy()
+                rows[held] = (s[L.S_CMODE], hs * s[L.S_CQ], hs * s[L.S_CW], hs * s[L.S_CT])
+            try:
+                cols = model.run(None, forces[seg.k0:seg.k1], commands=rows)
+            except FloatingPointError as exc:
+                raise CliError(f'simulation fault in steps {seg.k0}..{seg.k1 - 1}: '
+                               f'{exc}') from None
+            yield seg, cols
+            if progress is not None:
+                progress.update(seg.k1)
+        if progress is not None:
+            progress.done()
+
+    def replay(self, overrides=None):
+        """
+        Return the columns of ``model.run`` of every step of the recording.
+
+        Parameters
+        ----------
+        overrides : dict, optional
+            Physics parameters {name: value} on top of the recorded ones, kept
+            across the recorded updates.
+
+        Returns
+        -------
+        dict of numpy.ndarray
+            One entry per step 0 .. n_steps - 1 (the state after step k, logged
+            at ``t0 + (k + 1) dt``), the keys of ``LeadScrewModel.run``.
+
+        """
+        model = self.model(overrides)
+        parts = [cols for _seg, cols in self.blocks(model, overrides=overrides)]
+        if not parts:
+            return {}
+        return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+
+    def run(self, writer=None, progress=None):
+        """
+        Re-simulate every step; optionally write a new recording in the node's layout.
+
+        Parameters
+        ----------
+        writer : RunWriter, optional
+            Gets the recorded commands and the new states, in the node's order.
+        progress : Progress, optional
+
+        Returns
+        -------
+        (NewStates, LeadScrewModel)
+            The states the node would have published, by step of their log
+            time, and the model after the last step.
+
+        """
+        model = self.model()
+        line = self.line = StateDelivery(model.params)
+        enc = M.StateEncoder(self.prefix, self.params.anti_backlash)
+        new = NewStates(self.n_steps, len(M.TRUTH_VALUES))
+        for seg, cols in self.blocks(model, line, progress=progress):
+            pieces = self._pieces(seg, writer) if writer is not None else []
+            if self.decimation == 1 and not (line.delay or line.drop_rate or line.pending()):
+                _block_states(self, seg, cols, pieces, enc, writer, new)
+            else:
+                _tick_states(self, seg, cols, pieces, enc, writer, new, line)
+        return new, model
+
+    def _pieces(self, seg, writer):
+        """Return the recorded command messages of a segment as tick_writer pieces."""
+        events, ids, pieces = self.events, writer.ids, []
+        for e0, e1, k, run in seg.groups:
+            i = k - seg.k0
+            if run:
+                datas = [d for _t, _kind, d in events[e0:e1]]
+                if len({len(d) for d in datas}) == 1:
+                    rows = np.frombuffer(b''.join(datas), dtype=np.uint8).reshape(run, -1)
+                    times = np.array([t for t, _kind, _d in events[e0:e1]], dtype=np.int64)
+                    pieces.append(Stream(i, i + run, ids[events[e0][1]], rows, times))
+                    continue
+                pieces.extend(Events(i + j, [(ids[kind], d, t)])
+                              for j, (t, kind, d) in enumerate(events[e0:e1]))
+                continue
+            messages = [(ids[kind], d, t) for t, kind, d in events[e0:e1] if kind in ids]
+            if messages:
+                pieces.append(Events(i, messages))
+        return pieces
+
+    def _apply_model(self, kind, data, model, line, keep):
+        """Apply a model event: a parameter update, a reset or a fault clearing."""
+        if kind == UPDATE_RECORD:
+            changes = {n: v for n, v in data.items() if n not in keep}
+            try:
+                params = ScrewParams.from_text(changes, base=model.params)
+            except ParameterError as exc:
+                raise CliError(f'{self.rec.path}: recorded {exc}') from None
+            model.set_params(params)
+            if line is not None:
+                line.set_faults(params)
+        elif kind == RESET_RECORD:
+            model.reset()
+            if line is not None:
+                line.reset()
+        elif kind == CLEAR_FAULT_RECORD:
+            model.clear_fault()
+
+    def joint_labels(self):
+        """Return the two joint names."""
+        return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
+
+
+class NewStates:
+    """
+    The states a re-simulation publishes, by step of their log time (1 .. n_steps).
+
+    ``sensor[k]``: the joint_states values (:data:`messages.SENSOR_VALUES`) delivered at
+    step k's log time (the last one when several arrive), ``has_sensor[k]``
+    whether any; ``truth[k]``: the truth values (:data:`messages.TRUTH_VALUES`) of a
+    sampled step, ``has_truth[k]``.
+    """
+
+    def __init__(self, n_steps, n_truth):
+        """Make room for ``n_steps`` steps."""
+        self.sensor = np.full((n_steps + 1, len(M.SENSOR_VALUES)), np.nan)
+        self.has_sensor = np.zeros(n_steps + 1, dtype=bool)
+        self.truth = np.full((n_steps + 1, n_truth), np.nan)
+        self.has_truth = np.zeros(n_steps + 1, dtype=bool)
+
+
+def _block_states(sim, seg, cols, pieces, enc, writer, new):
+    """Keep (and write) the states of a segment whose every step publishes at once."""
+    k0, k1 = seg.k0, seg.k1
+    sensed = {name: cols[col] for name, col in zip(M.SENSOR_VALUES, M.SENSOR_COLUMNS)}
+    new.sensor[k0 + 1:k1 + 1] = np.column_stack([sensed[n] for n in M.SENSOR_VALUES])
+    new.has_sensor[k0 + 1:k1 + 1] = True
+    new.truth[k0 + 1:k1 + 1] = np.column_stack([cols[n] for n in M.TRUTH_VALUES])
+    new.has_truth[k0 + 1:k1 + 1] = True
+    if writer is None:
+        return
+    t_state = sim.t0 + (np.arange(k0, k1, dtype=np.int64) + 1) * sim.dt_ns
+    analysis = {name: np.asarray(cols[col], dtype=float)
+                for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
+    states = (enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
+              + enc.rows('analysis', t_state, analysis))
+    rows = [r for _topic, r in states]
+    chans = [writer.ids[topic] for topic, _r in states]
+    if writer.tf is not None:
+        rows.append(writer.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
+        chans.append(writer.ids['/tf'])
+    write_block(writer.rec, pieces, chans, rows, t_state)
+
+
+def _tick_events(pieces):
+    """Return {block index: [(channel, bytes, log time)]} of tick_writer pieces."""
+    out = {}
+    for p in pieces:
+        if isinstance(p, Events):
+            out.setdefault(p.i0, []).extend(p.messages)
+        else:
+            for j in range(p.i1 - p.i0):
+                out.setdefault(p.i0 + j, []).append(
+                    (p.channel, p.rows[j].tobytes(), int(p.log_times[j])))
+    return out
+
+
+def _tick_states(sim, seg, cols, pieces, enc, writer, new, line):
+    """Keep (and write) the states of a segment step by step, through the state delivery."""
+    events = _tick_events(pieces)
+    dec, dt_ns = sim.decimation, sim.dt_ns
+    sensor = np.column_stack([cols[c] for c in M.SENSOR_COLUMNS]).tolist()
+    truth = np.column_stack([cols[n] for n in M.TRUTH_VALUES]).tolist()
+    analysis = np.column_stack([cols[c] for c in M.ANALYSIS_COLUMNS]).tolist()
+    for i, k in enumerate(range(seg.k0, seg.k1)):
+        now = sim.t0 + (k + 1) * dt_ns
+        if writer is not None:
+            for channel, data, log_time in events.get(i, ()):
+                writer.write(channel, data, log_time)
+        sampled = (k + 1) % dec == 0
+        if sampled:
+            line.sample(k + 1, now, tuple(sensor[i]))
+        values = None
+        for stamp, values in line.due(k + 1):
+            new.sensor[k + 1] = values
+            new.has_sensor[k + 1] = True
+            if writer is not None:
+                for topic, data in enc.sensor(stamp, values):
+                    writer.write(writer.ids[topic], data, now)
+        if sampled:
+            new.truth[k + 1] = truth[i]
+            new.has_truth[k + 1] = True
+            if writer is not None:
+                for topic, data in enc.truth(now, truth[i]) + enc.analysis(now, analysis[i]):
+                    writer.write(writer.ids[topic], data, now)
+        if values is not None and writer is not None:
+            writer.write_tf(stamp, values[0], values[1], now)

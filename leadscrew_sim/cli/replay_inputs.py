@@ -1,0 +1,219 @@
+"""
+The pass of a recording's events through the node's CommandHold: the drive command of each step.
+
+:meth:`leadscrew_sim.cli.replay.Resim.inputs` runs it once. Runs of one
+std_msgs/Float64 drive command per step with no timeout, delay or loss are
+taken in one vectorised go, with the same doubles CommandHold forms; all
+else goes event by event, step by step, through CommandHold itself.
+"""
+import math
+
+import numpy as np
+
+from .args import CliError, NS
+from ..core.commands import (CommandHold, DROPPED, first_step, JOINT_COMMAND_MODES, NutMap,
+                             REJECTED)
+from ..core.params import ParameterError, ScrewParams
+from ..io import cdr as C
+from ..io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD, run_setting, UPDATE_RECORD
+
+#: The recorded events that act on the model itself; a stretch of one compiled call ends there.
+MODEL_EVENTS = (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD)
+
+#: The std_msgs/Float64 drive commands, by their CommandHold method.
+FLOAT_COMMANDS = ('torque_command', 'velocity_command', 'position_command')
+
+_LE_F64 = b'\x00\x01'           # the little-endian CDR encapsulation rclpy writes
+
+
+class Segment:
+    """
+    Steps ``k0 .. k1 - 1`` of a recording, run in one compiled call.
+
+    ``events``: the model events ``[(kind, data)]`` applied before step ``k0``;
+    ``groups``: the event groups of its steps (see :meth:`Resim.inputs`).
+    """
+
+    __slots__ = ('k0', 'k1', 'events', 'groups')
+
+    def __init__(self, k0, events):
+        """Start at step ``k0`` after ``events``."""
+        self.k0, self.k1, self.events, self.groups = k0, k0, events, []
+
+
+class CommandPass:
+    """The pass of the recorded events of a Resim through the node's CommandHold."""
+
+    def __init__(self, sim):
+        """Start with the recorded parameters and run settings of ``sim``."""
+        from ..core.model import LeadScrewModel
+        self.sim = sim
+        self.model = LeadScrewModel(sim.params, dt=sim.dt_ns / NS)   # stepped never
+        timeout = sim.timeout if sim.clock_mode != 'realtime' else 0.0
+        self.hold = CommandHold(sim.prefix, timeout, NutMap.of_model(self.model),
+                                sim.joint_command_mode, self.model.params)
+        n = sim.n_steps
+        self.commands = np.full((n, 4), np.nan)
+        self.forces = np.zeros(n)
+        self.current = None         # the command of the last step, None: the model's own
+        self.k = 0                  # the next step to fill
+
+    def build(self):
+        """Return (segments, commands, forces) as :meth:`Resim.inputs` describes them."""
+        sim = self.sim
+        events, n = sim.events, sim.n_steps
+        ticks = [max(0, first_step(e[0], sim.t0, sim.dt_ns)) for e in events]
+        segments = [Segment(0, [])]
+        sim.rejected = 0
+        for e0, e1, k, run in _groups(events, ticks, n):
+            self._fill(k)
+            if run and self._quiet():
+                self._float_run(events[e0:e1], k)
+                segments[-1].groups.append((e0, e1, k, run))
+                continue
+            if run:                 # timeouts, delay or loss: step by step
+                for i in range(run):
+                    self._fill(k + i)
+                    self._apply(events[e0 + i][1], events[e0 + i][2],
+                                sim.t0 + (k + i) * sim.dt_ns)
+                    self._step(k + i)
+                    segments[-1].groups.append((e0 + i, e0 + i + 1, k + i, 0))
+                continue
+            model_events = [(kind, data) for _t, kind, data in events[e0:e1]
+                            if kind in MODEL_EVENTS]
+            if model_events:
+                segments[-1].k1 = k
+                segments.append(Segment(k, model_events))
+                self.current = None
+            t_k = sim.t0 + k * sim.dt_ns
+            for _t, kind, data in events[e0:e1]:
+                self._apply(kind, data, t_k)
+            self._step(k)
+            segments[-1].groups.append((e0, e1, k, 0))
+        self._fill(n)
+        segments[-1].k1 = n
+        return segments, self.commands, self.forces
+
+    def _quiet(self):
+        """Return True when only commands change the drive command (no timeout, delay, loss)."""
+        h = self.hold
+        return h.timeout <= 0.0 and h.delay <= 0 and h.drop_rate <= 0.0
+
+    def _fill(self, k_end):
+        """Fill the steps up to ``k_end`` that have no events."""
+        if self._quiet():
+            k = self.k
+            if k_end > k:
+                if self.current is not None:
+                    self.commands[k:k_end] = self.current
+                self.forces[k:k_end] = self.hold.force
+                self.k = k_end
+            return
+        for k in range(self.k, k_end):
+            self._step(k)
+
+    def _step(self, k):
+        """Take the drive command of step ``k`` from the hold."""
+        command = self.hold.changed_command(self.sim.t0 + k * self.sim.dt_ns)
+        if command is not None:
+            self.current = command
+        if self.current is not None:
+            self.commands[k] = self.current
+        self.forces[k] = self.hold.force
+        self.k = k + 1
+
+    def _float_run(self, run, k):
+        """Take a run of one Float64 drive command per step in one go (as CommandHold does)."""
+        kind = run[0][1]
+        datas = [data for _t, _kind, data in run]
+        values = _float64s(datas)
+        n = len(run)
+        if not np.isfinite(values).all():        # the hold rejects some: step by step
+            for i, (_t, kind, data) in enumerate(run):
+                self._apply(kind, data, self.sim.t0 + (k + i) * self.sim.dt_ns)
+                self._step(k + i)
+            return
+        hold = self.hold
+        rows = self.commands[k:k + n]
+        m = hold.nut_map
+        if kind == 'torque_command':
+            rows[:] = (0.0, math.nan, math.nan, 0.0)
+            rows[:, 3] = values
+        elif kind == 'velocity_command':
+            rows[:] = (1.0, math.nan, 0.0, 0.0)
+            rows[:, 2] = m.k * values
+        else:
+            rows[:] = (2.0, 0.0, math.nan, 0.0)
+            rows[:, 1] = m.theta0 + m.k * (values - m.x0)
+        hold.received += n - 1
+        last = self.sim.t0 + (k + n - 1) * self.sim.dt_ns
+        getattr(hold, kind)(float(values[-1]), last)
+        self.current = hold.changed_command(last)
+        self.forces[k:k + n] = hold.force
+        self.k = k + n
+
+    def _apply(self, kind, data, t_k):
+        """Apply one event to the hold at step time ``t_k`` [ns]; count the rejected commands."""
+        sim, hold = self.sim, self.hold
+        if kind in FLOAT_COMMANDS:
+            reason = getattr(hold, kind)(C.decode_float64(data), t_k)
+            sim.rejected += reason not in (None, DROPPED)
+        elif kind == 'joint_commands':
+            _s, names, pos, vel, eff = C.decode_joint_state(data)
+            sim.rejected += hold.joint_commands(names, pos, vel, eff, t_k)[0] == REJECTED
+        elif kind == 'external_force':
+            sim.rejected += hold.external_force(C.decode_float64(data)) is not None
+        elif kind == UPDATE_RECORD:
+            changes = {n: v for n, v in data.items() if n not in sim.overrides}
+            try:
+                params = ScrewParams.from_text(changes, base=self.model.params)
+            except ParameterError as exc:
+                raise CliError(f'{sim.rec.path}: recorded {exc}') from None
+            self.model.set_params(params)
+            hold.set_faults(params)
+            if 'command_timeout' in data and sim.clock_mode != 'realtime':
+                hold.timeout = run_setting(data, 'command_timeout', hold.timeout)
+            if 'joint_command_mode' in data:
+                hold.joint_mode = JOINT_COMMAND_MODES[run_setting(data, 'joint_command_mode',
+                                                                  'auto')]
+        elif kind == RESET_RECORD:
+            self.model.reset()
+            hold.reset()
+            hold.nut_map = NutMap.of_model(self.model)
+
+
+def _groups(events, ticks, n):
+    """
+    Yield the event groups (e0, e1, k, run) of the steps before ``n``.
+
+    ``run`` > 0: events ``e0 .. e1 - 1`` are one Float64 drive command of one
+    kind per step, on the consecutive steps ``k .. k + run - 1``; ``run`` = 0:
+    the events of step ``k`` alone.
+    """
+    ne = len(events)
+    e = 0
+    while e < ne and ticks[e] < n:
+        k = ticks[e]
+        f = e + 1
+        while f < ne and ticks[f] == k:
+            f += 1
+        kind = events[e][1]
+        if f == e + 1 and kind in FLOAT_COMMANDS:
+            g = f                   # extend: one event of the same kind per next step
+            while (g < ne and ticks[g] == ticks[g - 1] + 1 and ticks[g] < n
+                   and events[g][1] == kind and (g + 1 >= ne or ticks[g + 1] != ticks[g])):
+                g += 1
+            if g - e > 1:
+                yield e, g, k, g - e
+                e = g
+                continue
+        yield e, f, k, 0
+        e = f
+
+
+def _float64s(datas):
+    """Return the values of serialized std_msgs/Float64 messages as an array."""
+    if all(len(d) == 12 and d[:2] == _LE_F64 for d in datas):
+        return np.frombuffer(b''.join(datas), dtype=np.uint8).reshape(-1, 12)[:, 4:].copy() \
+            .view('<f8').ravel()
+    return np.array([C.decode_float64(d) for d in datas], dtype=float)
