@@ -150,9 +150,12 @@ class Resim:
         forces : numpy.ndarray, shape (n_steps,)
             The external force of each step [N].
 
+        Notes
+        -----
         The result is computed once; it does not depend on the physics
         parameters the model runs with (only on the recorded fault, delay
         and timeout settings and the axis's lead and initial position).
+
         """
         if self._inputs is None:
             self._inputs = CommandPass(self).build()
@@ -178,6 +181,7 @@ class Resim:
         overrides : dict, optional
             Physics parameters kept across the recorded updates.
         progress : Progress, optional
+            Told the steps done after each segment.
 
         """
         segments, commands, forces = self.inputs()
@@ -237,6 +241,7 @@ class Resim:
         writer : RunWriter, optional
             Gets the recorded commands and the new states, in the node's order.
         progress : Progress, optional
+            Told the steps done after each segment.
 
         Returns
         -------
