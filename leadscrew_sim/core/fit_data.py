@@ -1,0 +1,283 @@
+"""
+The data of an identification: the measured signals going in, the verdicts coming out.
+
+Measured signals (:class:`Measurements`): what the axis's sensors report on
+the step grid, with the noise level that weights each and a free offset for
+each position signal (the homing's zero).
+
+Verdicts (:func:`judge`): identified, or not identifiable from the data and why.
+
+A parameter is identified when its 95 % interval is narrower than
++-:data:`REL_MAX` of its size (its value, or its typical size when the value
+is near 0). Otherwise the reason is told apart from the Jacobian J (of the
+weighted residuals, in the optimiser's coordinates):
+
+- no sensitivity: the column of J is zero, or so small that even with every
+  other parameter known the interval would exceed the bar (the marginal
+  standard error, the full one divided by the square root of its variance
+  inflation factor VIF = (J^T J)^-1_ii (J^T J)_ii); for example the backlash
+  of a run that never reverses, the stiction of a run that never breaks away;
+- collinear: the marginal interval passes the bar but the full one does not:
+  the parameter trades off against others (named: the largest correlation),
+  and the data fix only a combination.
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+#: Largest relative half-width of a 95 % interval of an identified parameter.
+REL_MAX = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """
+    The verdict on one parameter, with its interval.
+
+    ``lower``, ``upper``: the 95 % interval [unit of the parameter] (NaN when
+    the parameter was not fitted); ``std``: its standard error; ``rel``: the
+    interval's half-width relative to the parameter's size.
+    """
+
+    name: str
+    identified: bool
+    reason: str
+    lower: float = math.nan
+    upper: float = math.nan
+    std: float = math.nan
+    rel: float = math.nan
+
+    @property
+    def status(self):
+        """Return 'identified' or 'not identifiable'."""
+        return 'identified' if self.identified else 'not identifiable'
+
+
+def scaled_inverse(a):
+    """
+    Return the inverse of the normal matrix ``a`` = J^T J, equilibrated first.
+
+    The columns of J differ by many decades (a friction coefficient against a
+    backlash the data hardly see), so ``a`` is inverted as D^-1 (D^-1 a D^-1)^-1
+    D^-1 with D its root diagonal; a zero column (no sensitivity) gets an
+    infinite variance instead of the zero a pseudo-inverse would give.
+    """
+    d = np.sqrt(np.diag(a))
+    zero = d == 0.0
+    ds = np.where(zero, 1.0, d)
+    inv = np.linalg.pinv(a / np.outer(ds, ds), rcond=1e-12) / np.outer(ds, ds)
+    inv[zero, :] = 0.0
+    inv[:, zero] = 0.0
+    inv[zero, zero] = np.inf
+    return inv
+
+
+def t_quantile(level, dof):
+    """Return the two-sided quantile of the t distribution of ``dof`` degrees of freedom."""
+    from scipy.stats import t
+    return float(t.ppf(0.5 + level / 2.0, dof))
+
+
+def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
+    """
+    Return the :class:`Verdict` of each fitted coordinate.
+
+    Parameters
+    ----------
+    coords : list of identification.Coordinate
+        The fitted parameters.
+    z : numpy.ndarray
+        Their coordinates at the solution.
+    jac : numpy.ndarray
+        Jacobian of the flattened weighted residuals with respect to z.
+    cov : numpy.ndarray
+        Covariance of z.
+    r : numpy.ndarray
+        The residuals at the solution (unused but for their count).
+    lo, hi : numpy.ndarray or None
+        Bounds of z (to say that a value sits on one).
+    level : float
+        Confidence level of the intervals.
+    dof : int
+        Degrees of freedom of the t quantile.
+    hints : dict, optional
+        name -> why the data lack what the parameter needs.
+
+    """
+    hints = hints or {}
+    tq = t_quantile(level, dof)
+    jtj = jac.T @ jac
+    inv = scaled_inverse(jtj)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    d = np.where((sd > 0) & np.isfinite(sd), sd, 1.0)
+    corr = np.where(np.isfinite(cov), cov, 0.0) / np.outer(d, d)
+    out = []
+    for i, c in enumerate(coords):
+        v = c.to_value(z[i])
+        za, zb = z[i] - tq * sd[i], z[i] + tq * sd[i]
+        lower, upper = _interval(c, za, zb)
+        size = max(abs(v), c.typical) if not c.log else v
+        rel = 0.5 * (upper - lower) / size if size > 0 else math.inf
+        std = _std_value(c, z[i], sd[i])
+        col = float(np.sqrt(jtj[i, i]))
+        vif = float(inv[i, i] * jtj[i, i]) if col > 0 else math.inf
+        marginal = rel / math.sqrt(vif) if vif > 0 and math.isfinite(vif) else math.inf
+        hint = f'; {hints[c.name]}' if c.name in hints else ''
+        if col == 0.0 or not math.isfinite(rel) and not math.isfinite(marginal):
+            out.append(Verdict(c.name, False, 'no sensitivity: the re-simulated signals do '
+                               f'not change with it{hint}', math.nan, math.nan, math.nan,
+                               math.inf))
+            continue
+        if rel <= REL_MAX:
+            where = ''
+            if lo is not None and z[i] <= lo[i] + 1e-9 * max(1.0, abs(lo[i])):
+                where = f' (at its lower bound {c.lower!r})'
+            elif hi is not None and z[i] >= hi[i] - 1e-9 * max(1.0, abs(hi[i])):
+                where = f' (at its upper bound {c.upper!r})'
+            out.append(Verdict(c.name, True, f'identified: 95 % interval +-{100 * rel:.3g} %'
+                               f'{where}', lower, upper, std, rel))
+            continue
+        if marginal > REL_MAX:
+            reason = (f'too little sensitivity: even with every other parameter known the '
+                      f'data fix it only to +-{100 * marginal:.3g} %{hint}')
+        else:
+            others = [(abs(corr[i, j]), j) for j in range(len(coords)) if j != i]
+            _c, j = max(others) if others else (0.0, i)
+            reason = (f'collinear with {coords[j].name} (correlation {corr[i, j]:+.3f}): the '
+                      f'data fix only a combination; alone +-{100 * marginal:.3g} %, '
+                      f'together +-{100 * rel:.3g} %')
+        out.append(Verdict(c.name, False, reason, lower, upper, std, rel))
+    return out
+
+
+def _interval(c, za, zb):
+    """Return the interval [unit] of coordinates [za, zb], clipped into the bounds."""
+    if c.log:
+        a = c.scale * math.exp(min(za, 700.0))
+        b = c.scale * math.exp(min(zb, 700.0))
+    else:
+        a, b = za * c.scale, zb * c.scale
+    return max(c.lower, a), min(c.upper, b)
+
+
+def _std_value(c, z, sd):
+    """Return the standard error [unit] of a value from that of its coordinate."""
+    return c.scale * math.exp(min(z, 700.0)) * sd if c.log else c.scale * sd
+
+
+# Measured signals ----------------------------------------------------------------------
+
+#: The signals an axis measures: (name, the ``model.run`` column it compares with, unit).
+SIGNALS = (('screw_angle', 'sensor_screw_angle', 'rad'),
+           ('nut_position', 'sensor_nut_position', 'm'),
+           ('motor_torque', 'motor_torque', 'N m'))
+
+#: Sensor parameters of an ideal re-simulation: no counts, noise or bias.
+IDEAL_SENSORS = dict(encoder_counts=0, encoder_noise=0.0, encoder_bias=0.0,
+                     scale_resolution=0.0, scale_noise=0.0, scale_bias=0.0)
+
+#: Signals with a free offset: the zero of an encoder and of a scale is the homing's.
+OFFSET_SIGNALS = ('screw_angle', 'nut_position')
+
+
+def sensor_sigma(params):
+    """
+    Return the known noise level [unit] of each position signal of a recording's sensors.
+
+    sigma^2 = noise^2 + q^2 / 12 (Gaussian noise, then quantisation to steps of q:
+    2 pi / counts for the encoder, the resolution for the scale); None where
+    the sensor is ideal (nothing known). Without a linear scale the nut signal
+    is the encoder's through the lead, so it is left out (None).
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The recording's sensor parameters.
+
+    """
+    q = 2.0 * math.pi / params.encoder_counts if params.encoder_counts else 0.0
+    enc = math.hypot(params.encoder_noise, q / math.sqrt(12.0)) or None
+    scale = math.hypot(params.scale_noise, params.scale_resolution / math.sqrt(12.0)) or None
+    return {'screw_angle': enc, 'nut_position': scale if params.linear_scale else None}
+
+
+def noise_estimate(y):
+    """
+    Return the white-noise level of a sampled signal from its second differences.
+
+    1.4826 MAD(d2 y) / sqrt(6): the second difference of white noise has the
+    variance 6 sigma^2, a smooth signal's is small, and the median absolute
+    deviation ignores the few large steps. NaN samples are skipped.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        The samples.
+
+    """
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    if len(y) < 4:
+        return 0.0
+    d2 = np.diff(y, 2)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+class Measurements:
+    """
+    The measured signals of a run on the step grid, with the noise level that weights each.
+
+    The residual of signal s at step k is (simulated - measured) / sigma_s;
+    a signal with a free offset (:data:`OFFSET_SIGNALS`) has its mean residual
+    removed (the offset's least-squares estimate); steps without a
+    measurement (NaN: dropped or not sampled) give 0.
+
+    Parameters
+    ----------
+    signals : dict
+        name (of :data:`SIGNALS`) -> numpy array of the measured value after each
+        step [unit], NaN where none.
+    sigma : dict
+        name -> noise level [unit] (> 0).
+
+    """
+
+    def __init__(self, signals, sigma):
+        """Keep the signals in :data:`SIGNALS` order and their masks."""
+        order = [s for s, _c, _u in SIGNALS if s in signals]
+        self.names = order
+        self.columns = {s: c for s, c, _u in SIGNALS}
+        self.units = {s: u for s, _c, u in SIGNALS}
+        self.data = np.array([np.asarray(signals[s], dtype=float) for s in order])
+        self.mask = np.isfinite(self.data)
+        self.data = np.where(self.mask, self.data, 0.0)
+        self.sigma = {s: float(sigma[s]) for s in order}
+        self.offset = [s in OFFSET_SIGNALS for s in order]
+
+    @property
+    def n(self):
+        """Return the number of steps."""
+        return self.data.shape[1]
+
+    def differences(self, columns, n=None):
+        """Return (simulated - measured) of the first n steps [unit], offsets removed."""
+        n = self.n if n is None else n
+        sim = np.array([np.asarray(columns[self.columns[s]], dtype=float)[:n]
+                        for s in self.names])
+        mask = self.mask[:, :n]
+        d = np.where(mask, sim - self.data[:, :n], 0.0)
+        for i, off in enumerate(self.offset):
+            m = mask[i]
+            if off and m.any():
+                d[i, m] -= d[i, m].mean()
+        return d
+
+    def residuals(self, columns, n=None):
+        """Return the weighted residual matrix (n_signals, n) of the first n steps."""
+        w = np.array([1.0 / self.sigma[s] for s in self.names])
+        return self.differences(columns, n) * w[:, None]
+
+    def offsets_removed(self):
+        """Return the number of offsets estimated (one per offset signal)."""
+        return sum(self.offset)

@@ -1,0 +1,427 @@
+"""
+Parameter identification: bounded nonlinear least squares on a re-simulation (no ROS, no I/O).
+
+The caller supplies ``residuals(values) -> array (n_signals, n_time)``: the
+re-simulation of the recorded commands with the physical values ``{name:
+value}``, less the measured signals, divided by each signal's noise level
+(:class:`.fit_data.Measurements`). :func:`fit` minimises the sum of squares with
+``scipy.optimize.least_squares`` (method ``'trf'``, bounded) in scaled
+coordinates (:class:`Coordinate`: z = v / s, or z = ln(v / s) for a parameter
+that spans decades), then estimates the covariance from the final Jacobian,
+95 % intervals (t distribution), the correlations, and a verdict per
+parameter (:mod:`.fit_data`).
+
+The covariance is the sandwich B M B with B = (J^T J)^-1 and M the
+long-run covariance of the per-step scores g_t = sum_s J_st r_st (Bartlett
+weights, bandwidth by Andrews' AR(1) plug-in rule). For white residuals M
+equals s^2 J^T J and the sandwich is the textbook s^2 (J^T J)^-1; the
+residuals of a re-simulation are serially correlated (quantisation of a
+slow signal, a drive loop's response to its sensor noise), and the plain
+formula would give intervals that are too narrow.
+"""
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from .params import ScrewParams
+from . import fit_data as V
+from .fit_data import (IDEAL_SENSORS, Measurements, noise_estimate, OFFSET_SIGNALS,
+                       scaled_inverse, sensor_sigma, SIGNALS)
+
+__all__ = ['Coordinate', 'DEFAULT_FIT', 'FitResult', 'FITTABLE', 'IDEAL_SENSORS', 'LEVEL',
+           'Measurements', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates', 'fit',
+           'noise_estimate', 'sandwich', 'scaled_inverse', 'sensor_sigma', 'typical_size']
+
+#: Parameters ``identify`` fits when not told otherwise.
+DEFAULT_FIT = ('mu_s', 'mu_k', 'stribeck_velocity', 'mu_viscous', 'backlash',
+               'bearing_coulomb', 'guide_coulomb')
+
+#: Fittable parameter -> (log coordinates, typical size): the typical size scales a
+#: parameter whose starting value is 0 and is the yardstick of a zero-valued one's interval.
+FITTABLE = {
+    'mu_s': (False, 0.05), 'mu_k': (False, 0.05), 'stribeck_velocity': (True, 1e-4),
+    'stribeck_exponent': (False, 1.0), 'mu_viscous': (False, 1.0),
+    'backlash': (False, 1e-5), 'bearing_coulomb': (False, 'torque'),
+    'bearing_viscous': (False, 'torque_rate'), 'guide_coulomb': (False, 'force'),
+    'guide_viscous': (False, 'force_rate'), 'motor_inertia': (True, 1e-6),
+    'screw_inertia': (True, 1e-6), 'payload_mass': (False, 1.0), 'nut_mass': (True, 0.01),
+    'preload_force': (False, 1.0), 'contact_damping': (True, 100.0),
+}
+
+#: Two-sided confidence level of the intervals.
+LEVEL = 0.95
+
+
+def typical_size(name, params):
+    """
+    Return the typical size of a fittable parameter (its unit) for the axis ``params``.
+
+    Torque-like sizes are 1 % of ``max_torque``; force-like ones that torque
+    through the lead (F = 2 pi T / l); rate-like ones per 10 rad/s or 10 mm/s.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`FITTABLE`.
+    params : ScrewParams
+        The axis.
+
+    """
+    size = FITTABLE[name][1]
+    torque = 0.01 * params.max_torque
+    force = torque * 2.0 * math.pi / params.lead
+    return {'torque': torque, 'torque_rate': torque / 10.0, 'force': force,
+            'force_rate': force / 0.01}.get(size, size)
+
+
+@dataclasses.dataclass(frozen=True)
+class Coordinate:
+    """
+    One fitted parameter in the optimiser's coordinates.
+
+    z = v / scale (linear) or z = ln(v / scale) (log); bounds [lower, upper] in
+    the parameter's unit.
+    """
+
+    name: str
+    initial: float
+    lower: float
+    upper: float
+    log: bool
+    scale: float
+    typical: float
+
+    def to_z(self, v):
+        """Return the coordinate of value ``v``."""
+        return math.log(v / self.scale) if self.log else v / self.scale
+
+    def to_value(self, z):
+        """Return the value of coordinate ``z`` (clipped into the bounds)."""
+        v = self.scale * math.exp(z) if self.log else z * self.scale
+        return min(self.upper, max(self.lower, v))
+
+
+def bounds(name, params):
+    """
+    Return the physical (lower, upper) limits of a fitted parameter of an axis.
+
+    The field's range (:meth:`ScrewParams.field_info`), tightened to physical
+    sense: thread friction below the jam limit mu' tan(lambda) < 1 (at 90 %)
+    and below 1; the backlash below half the pitch; the Stribeck velocity in
+    [1e-6, 1] m/s; the backlash also below 10 times its start (or 0.1 mm);
+    inertias and masses within a factor 100 of the start; the
+    Coulomb terms below the motor's torque; |mu_viscous| <= 10 s/m.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`FITTABLE`.
+    params : ScrewParams
+        The starting set.
+
+    """
+    md = ScrewParams.field_info()[name][2]
+    lo, hi = md['lo'], md['hi']
+    v = getattr(params, name)
+    torque_force = params.max_torque * 2.0 * math.pi / params.lead
+    tight = {
+        'mu_s': (0.0, min(1.0, 0.9 / (params.thread_factor * math.tan(params.lead_angle)))),
+        'mu_k': (0.0, min(1.0, 0.9 / (params.thread_factor * math.tan(params.lead_angle)))),
+        'stribeck_velocity': (1e-6, 1.0), 'stribeck_exponent': (0.3, 5.0),
+        'mu_viscous': (-10.0, 10.0),
+        'backlash': (0.0, min(0.5 * params.pitch, max(10.0 * v, 1e-4))),
+        'bearing_coulomb': (0.0, 0.5 * params.max_torque),
+        'bearing_viscous': (0.0, params.max_torque / 10.0),
+        'guide_coulomb': (0.0, 0.5 * torque_force), 'guide_viscous': (0.0, torque_force / 0.01),
+        'payload_mass': (0.0, max(100.0 * v, 1.0)), 'preload_force': (0.0, max(10.0 * v, 10.0)),
+    }
+    if FITTABLE[name][0]:
+        a, b = tight.get(name, (v / 100.0, v * 100.0))
+    else:
+        a, b = tight.get(name, (lo, hi))
+    return max(a, lo) if lo is not None else a, min(b, hi) if hi is not None else b
+
+
+def coordinates(names, params, fixed_bounds=None):
+    """
+    Return the :class:`Coordinate` of each parameter in ``names``, starting at ``params``.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Keys of :data:`FITTABLE`.
+    params : ScrewParams
+        Starting values (and the axis the bounds derive from).
+    fixed_bounds : dict, optional
+        name -> (lower, upper) replacing :func:`bounds`.
+
+    """
+    out = []
+    for name in names:
+        if name not in FITTABLE:
+            raise ValueError(f'{name!r} is not a fittable parameter (fittable: '
+                             f'{", ".join(FITTABLE)})')
+        lo, hi = (fixed_bounds or {}).get(name) or bounds(name, params)
+        v0 = float(getattr(params, name))
+        log, _size = FITTABLE[name]
+        typ = typical_size(name, params)
+        if not lo <= v0 <= hi:
+            raise ValueError(f'starting value {name}={v0!r} lies outside its fitting bounds '
+                             f'[{lo!r}, {hi!r}]')
+        if log and v0 <= 0.0:
+            raise ValueError(f'starting value {name}={v0!r} must be > 0')
+        scale = v0 if log else (abs(v0) if v0 != 0.0 else typ)
+        out.append(Coordinate(name, v0, lo, hi, log, scale, typ))
+    return out
+
+
+@dataclasses.dataclass
+class FitResult:
+    """What :func:`fit` found: values, intervals, correlations, verdicts and its cost."""
+
+    names: list
+    initial: list
+    values: list
+    lower: list
+    upper: list
+    std: list
+    correlation: np.ndarray
+    verdicts: list
+    rms: np.ndarray
+    n_residuals: int
+    dof: int
+    bandwidth: int
+    nfev: int
+    wall: float
+    message: str
+    singular_values: np.ndarray = None
+    rms_initial: np.ndarray = None
+
+    def value(self, name):
+        """Return the value of parameter ``name`` (fitted, or kept at its start)."""
+        return self.values[self.names.index(name)]
+
+    def verdict(self, name):
+        """Return the :class:`~.fit_data.Verdict` of parameter ``name``."""
+        return self.verdicts[self.names.index(name)]
+
+
+class _Counted:
+    """The residual function in z coordinates, flattened, counting its calls."""
+
+    def __init__(self, residuals, coords, fixed):
+        self.residuals, self.coords, self.fixed = residuals, coords, fixed
+        self.nfev = 0
+        self.shape = None
+        self.horizon = None
+
+    def values(self, z):
+        vals = dict(self.fixed)
+        vals.update({c.name: c.to_value(zi) for c, zi in zip(self.coords, z)})
+        return vals
+
+    def __call__(self, z):
+        self.nfev += 1
+        r = np.asarray(self.residuals(self.values(z), self.horizon), dtype=float)
+        self.shape = r.shape
+        return r.ravel()
+
+
+def _jacobian(fun, z, r0, step):
+    """Return the forward-difference Jacobian of ``fun`` at ``z`` (relative step)."""
+    jac = np.empty((r0.size, len(z)))
+    for i in range(len(z)):
+        h = step * max(1.0, abs(z[i]))
+        zi = np.array(z, dtype=float)
+        zi[i] += h
+        jac[:, i] = (fun(zi) - r0) / h
+    return jac
+
+
+def _bartlett_bandwidth(scores):
+    """Return Andrews' (1991) AR(1) plug-in bandwidth of Bartlett weights for ``scores``."""
+    n = len(scores)
+    num = den = 0.0
+    for g in scores.T:
+        a, b = g[:-1], g[1:]
+        ss = float(a @ a)
+        if ss == 0.0:
+            continue
+        rho = min(0.97, max(-0.97, float(a @ b) / ss))
+        var = float(np.mean((b - rho * a) ** 2))
+        num += 4.0 * rho ** 2 * var ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
+        den += var ** 2 / (1.0 - rho) ** 4
+    if den == 0.0:
+        return 0
+    return int(min(n // 4, math.ceil(1.1447 * (num / den * n) ** (1.0 / 3.0))))
+
+
+def sandwich(jac, r, shape):
+    """
+    Return (covariance, bandwidth): the HAC sandwich covariance of a least-squares fit.
+
+    Parameters
+    ----------
+    jac : numpy.ndarray
+        Jacobian (n_signals * n_time, p) of the flattened residuals.
+    r : numpy.ndarray
+        The flattened residuals at the solution.
+    shape : tuple
+        (n_signals, n_time) of the residual matrix.
+
+    """
+    p = jac.shape[1]
+    scores = (jac.reshape(shape + (p,)) * r.reshape(shape)[:, :, None]).sum(axis=0)
+    bread = scaled_inverse(jac.T @ jac)
+    lag = _bartlett_bandwidth(scores)
+    meat = scores.T @ scores
+    for ell in range(1, lag + 1):
+        gam = scores[ell:].T @ scores[:-ell]
+        meat += (1.0 - ell / (lag + 1.0)) * (gam + gam.T)
+    n_used = int(np.count_nonzero(r)) or 1
+    p_eff = min(p, n_used - 1)
+    meat *= n_used / max(1, n_used - p_eff)      # small-sample factor, as s^2 divides by n - p
+    zero = ~np.isfinite(np.diag(bread))
+    b = np.where(np.isfinite(bread), bread, 0.0)
+    cov = b @ meat @ b
+    cov[zero, zero] = np.inf
+    return cov, lag
+
+
+def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
+        hints=None, ftol=1e-8, xtol=1e-8, rounds=2):
+    """
+    Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
+
+    A parameter whose verdict is not identifiable keeps its starting value
+    and is fixed there; the others are fitted again without it (at most
+    ``rounds`` fits).
+
+    Parameters
+    ----------
+    residuals : callable
+        ``residuals(values, n) -> array (n_signals, n)``: the weighted residuals
+        (in noise units, 0 where nothing was measured) of the first n steps (all
+        when n is None), values ``{name: value}`` in SI units.
+    coords : list of Coordinate
+        The fitted parameters (:func:`coordinates`).
+    fixed : dict, optional
+        Values handed to ``residuals`` with every call besides the fitted ones.
+    horizons : list of int, optional
+        Growing horizons [steps] fitted one after the other, each from the last
+        one's solution, before the whole run (None): the error of a simulation
+        grows with time, so a long run seen at once from a distant start has
+        many local minima; a short one has few.
+    diff_step : float
+        Relative step of the finite-difference Jacobian in z coordinates.
+    max_nfev : int, optional
+        Most re-simulations per fit (default 50 per parameter).
+    hints : dict, optional
+        name -> a sentence on why the data lacks what that parameter needs,
+        appended to a verdict of no sensitivity.
+    ftol, xtol : float
+        Tolerances of ``least_squares``.
+    rounds : int
+        Most fits.
+
+    """
+    from scipy.optimize import least_squares
+    t_wall = time.perf_counter()
+    fixed = dict(fixed or {})
+    active = list(coords)
+    start = {c.name: c.initial for c in coords}
+    held = {}                    # name -> Verdict of the parameters fixed at their start
+    nfev, message, rms0 = 0, '', None
+    for _round in range(rounds):
+        fun = _Counted(residuals, active, dict(fixed, **{n: start[n] for n in held}))
+        z0 = np.array([c.to_z(c.initial) for c in active])
+        if rms0 is None:
+            r0 = fun(z0)
+            rms0 = _rms(r0, fun.shape)
+        if not active:
+            r, jac, z = fun(z0), np.zeros((fun(z0).size, 0)), z0
+            break
+        lo = np.array([c.to_z(c.lower) if not (c.log and c.lower <= 0) else -np.inf
+                       for c in active])
+        hi = np.array([c.to_z(c.upper) for c in active])
+        z = np.clip(z0, lo, hi)
+        for h in (horizons or [None]) if _round == 0 else [None]:
+            fun.horizon = h
+            res = least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
+                                diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                                max_nfev=max_nfev or 50 * len(active))
+            z = res.x
+        fun.horizon = None
+        r = fun(z)
+        nfev += fun.nfev
+        message = res.message
+        jac = _jacobian(fun, z, r, diff_step)
+        nfev_after = fun.nfev
+        cov, lag = sandwich(jac, r, fun.shape)
+        verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),
+                           hints=hints)
+        nfev += fun.nfev - nfev_after
+        bad = [c for c, v in zip(active, verdicts) if not v.identified]
+        if not bad or _round == rounds - 1:
+            break
+        held.update({c.name: v for c, v in zip(active, verdicts) if not v.identified})
+        # the others start from where this fit left them
+        active = [dataclasses.replace(c, initial=c.to_value(zi))
+                  for c, zi, v in zip(active, z, verdicts) if v.identified]
+    return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints)
+
+
+def _dof(r, p):
+    """Return the degrees of freedom of the residuals: measured values less parameters."""
+    return max(1, int(np.count_nonzero(r)) - p)
+
+
+def _rms(r, shape):
+    """Return the RMS of each signal's residuals (over its measured samples)."""
+    m = r.reshape(shape)
+    n = np.maximum(1, np.count_nonzero(m, axis=1))
+    return np.sqrt((m ** 2).sum(axis=1) / n)
+
+
+def _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints):
+    """Assemble the FitResult of the last fit, with the held parameters at their start."""
+    cov, lag = (sandwich(jac, r, fun.shape) if active else (np.zeros((0, 0)), 0))
+    dof = _dof(r, len(active))
+    verdicts = V.judge(active, z, jac, cov, r, None, None, LEVEL, dof=dof, hints=hints) \
+        if active else []
+    final = {c.name: (c, zi, v, i) for i, (c, zi, v) in enumerate(zip(active, z, verdicts))}
+    names, values, lower, upper, std, out_verdicts, idx = [], [], [], [], [], [], []
+    for c in coords:
+        names.append(c.name)
+        if c.name in final:
+            ca, zi, v, i = final[c.name]
+            values.append(ca.to_value(zi))
+            lower.append(v.lower)
+            upper.append(v.upper)
+            std.append(v.std)
+            out_verdicts.append(v)
+            idx.append(i)
+        else:
+            values.append(c.initial)
+            lower.append(math.nan)
+            upper.append(math.nan)
+            std.append(math.nan)
+            out_verdicts.append(held[c.name])
+            idx.append(None)
+    corr = np.full((len(coords), len(coords)), np.nan)
+    if active:
+        d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        c_act = cov / np.outer(d, d)
+        for a, ia in enumerate(idx):
+            for b, ib in enumerate(idx):
+                if ia is not None and ib is not None:
+                    corr[a, b] = c_act[ia, ib]
+    sv = np.linalg.svd(jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300),
+                       compute_uv=False) if active else np.zeros(0)
+    return FitResult(names=names, initial=[c.initial for c in coords], values=values,
+                     lower=lower, upper=upper, std=std, correlation=corr,
+                     verdicts=out_verdicts, rms=_rms(r, fun.shape), n_residuals=int(r.size),
+                     dof=dof, bandwidth=lag, nfev=nfev, wall=time.perf_counter() - t_wall,
+                     message=message, singular_values=sv, rms_initial=rms0)

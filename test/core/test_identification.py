@@ -1,0 +1,131 @@
+"""
+The fitting core: recovery of known parameters from a noisy torque-mode run, and the verdicts.
+
+The recordings are ``model.run`` of parameters the test chooses, read through the
+model's own sensor models (encoder counts and noise, a quantising scale with
+noise, seeded); the fit re-simulates with ideal sensors from starting values 20-30 %
+off. The oracle is the true parameter set.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from leadscrew_sim import LeadScrewModel, load_preset
+from leadscrew_sim.core import identification as ident
+from leadscrew_sim.core.params import ScrewParams
+
+N = 4000                              # 4 s at 1 kHz
+SENSORS = dict(encoder_counts=4096, encoder_noise=1.5e-3, scale_resolution=1e-6,
+               scale_noise=5e-7)
+
+
+def _pulses(up, down):
+    """Return triangular torque pulses [N m]: up, down, up, down, 0.4 s each, 1 s apart."""
+    t = np.arange(N) * 1e-3
+    out = np.zeros(N)
+    for i in range(4):
+        u = (t - i) / 0.4
+        out += np.where((u >= 0) & (u < 1), (up, down)[i % 2] * (1 - np.abs(2 * u - 1)), 0.0)
+    return out
+
+
+def _problem(truth, torques, start, names):
+    """Return (residual function, coordinates) of a run of ``truth`` seen by its sensors."""
+    rec = LeadScrewModel(truth, 1e-3).run(torques)
+    meas = ident.Measurements({'screw_angle': rec['sensor_screw_angle'],
+                               'nut_position': rec['sensor_nut_position']},
+                              ident.sensor_sigma(truth))
+    base = ScrewParams.from_dict(ident.IDEAL_SENSORS, base=start)
+
+    def residuals(values, n=None):
+        p = ScrewParams.from_dict(values, base=base)
+        return meas.residuals(LeadScrewModel(p, 1e-3).run(torques[:n]), n)
+    return residuals, ident.coordinates(names, start)
+
+
+@pytest.fixture(scope='module')
+def torque_fit():
+    """Fit mu_s, mu_k, stribeck_velocity and backlash of a vertical tr12x3 (seed 1)."""
+    truth = load_preset('tr12x3', mu_s=0.21, mu_k=0.16, stribeck_velocity=8e-4,
+                        sensor_seed=1, **SENSORS)
+    start = ScrewParams.from_dict(dict(mu_s=0.26, mu_k=0.12, stribeck_velocity=1.04e-3,
+                                       backlash=7.5e-5), base=truth)
+    residuals, coords = _problem(truth, _pulses(-0.2, 0.1), start,
+                                 ['mu_s', 'mu_k', 'stribeck_velocity', 'backlash'])
+    return truth, ident.fit(residuals, coords, horizons=[250, 500, 1000, 2000])
+
+
+def test_recovers_friction_within_the_issue_tolerances(torque_fit):
+    """mu_k within 1 %, mu_s within 2 %, the Stribeck velocity within 10 %, CIs covering."""
+    truth, res = torque_fit
+    # the issue's tolerances; the 95 % intervals are far narrower (a 1 um scale sees a
+    # 0.01 % change of mu_k over a 4 s run), so these are loose bounds on a good fit
+    for name, tol in (('mu_k', 0.01), ('mu_s', 0.02), ('stribeck_velocity', 0.10)):
+        v, true = res.value(name), getattr(truth, name)
+        assert res.verdict(name).identified, res.verdict(name)
+        assert abs(v - true) <= tol * true, (name, v, true)
+    for name in ('mu_k', 'stribeck_velocity'):
+        vd, true = res.verdict(name), getattr(truth, name)
+        assert vd.lower <= true <= vd.upper, (name, vd)
+    # residual RMS at the noise level: sigma^2 = noise^2 + q^2 / 12 of each sensor, so a
+    # fit that reached the truth leaves RMS / sigma near 1 (between the encoder's
+    # undithered 0.6 and 1.3)
+    assert np.all((res.rms > 0.5) & (res.rms < 1.3)), res.rms
+
+
+def test_backlash_of_a_loaded_vertical_axis_is_not_identifiable(torque_fit):
+    """10 kg hang on one flank: the backlash never shows; verdict, reason, starting value."""
+    _truth, res = torque_fit
+    vd = res.verdict('backlash')
+    assert not vd.identified
+    assert 'sensitivity' in vd.reason
+    assert res.value('backlash') == 7.5e-5           # kept at its start, not "fitted"
+    assert math.isnan(res.lower[res.names.index('backlash')])
+
+
+def test_a_parameter_without_effect_has_no_sensitivity():
+    """preload_force acts only on a split nut: a zero Jacobian column, never 'fitted'."""
+    truth = load_preset('tr12x3', sensor_seed=2, **SENSORS)
+    torques = _pulses(-0.2, 0.1)[:1500]
+    rec = LeadScrewModel(truth, 1e-3).run(torques)
+    meas = ident.Measurements({'screw_angle': rec['sensor_screw_angle']},
+                              ident.sensor_sigma(truth))
+    base = ScrewParams.from_dict(ident.IDEAL_SENSORS, base=truth)
+    start = ScrewParams.from_dict({'preload_force': 5.0}, base=truth)
+
+    def residuals(values, n=None):
+        p = ScrewParams.from_dict(values, base=base)
+        return meas.residuals(LeadScrewModel(p, 1e-3).run(torques[:n]), n)
+    res = ident.fit(residuals, ident.coordinates(['mu_k', 'preload_force'], start))
+    vd = res.verdict('preload_force')
+    assert not vd.identified and vd.reason.startswith('no sensitivity'), vd
+    assert res.value('preload_force') == 5.0
+    # mu_k from the same run: 1 % (the issue's bar)
+    assert abs(res.value('mu_k') - truth.mu_k) <= 0.01 * truth.mu_k
+
+
+def test_noise_estimate_matches_white_noise():
+    """The second-difference MAD estimate of white noise on a smooth signal: within 5 %."""
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 1.0, 20000)
+    y = np.sin(2 * np.pi * t) + 0.01 * rng.standard_normal(len(t))
+    # the MAD of 20000 normal samples has a relative standard error of about 1.1 %;
+    # 5 % is over four of them
+    assert abs(ident.noise_estimate(y) / 0.01 - 1.0) < 0.05
+
+
+def test_sensor_sigma_is_noise_and_quantisation():
+    """sigma^2 = noise^2 + q^2 / 12 for the encoder (q = 2 pi / N) and the scale."""
+    p = ScrewParams.from_dict(dict(encoder_counts=1000, encoder_noise=1e-3,
+                                   scale_resolution=2e-6, scale_noise=0.0))
+    s = ident.sensor_sigma(p)
+    assert s['screw_angle'] == pytest.approx(math.sqrt(1e-6 + (2 * math.pi / 1000) ** 2 / 12))
+    assert s['nut_position'] == pytest.approx(2e-6 / math.sqrt(12))
+    assert ident.sensor_sigma(ScrewParams())['screw_angle'] is None
+
+
+def test_unknown_parameter_is_refused():
+    """A name outside FITTABLE raises ValueError naming it."""
+    with pytest.raises(ValueError, match="'lead_angle' is not a fittable"):
+        ident.coordinates(['lead_angle'], ScrewParams())
