@@ -1,0 +1,123 @@
+"""
+``excite``: publish a standard identification profile as commands on the ROS graph.
+
+``leadscrew_sim excite NAME`` publishes the profile's commands on the node's
+command topic (or a real axis' driver listening on the same topics) at
+``--rate`` Hz; record them with the node's recorder or ``ros2 bag record``.
+``--list`` and ``--dry-run`` need no ROS. The profile's defaults come from the
+axis parameters (``--preset``, ``--params``, ``--set``, as ``simulate``), its
+options from ``--opt NAME=VALUE``. The publishing node lives in
+:mod:`leadscrew_sim.ros.exciter`; like ``play``, this verb imports rclpy
+only when it publishes.
+"""
+import csv
+import importlib
+import math
+
+from .args import CliError, check_finite, DEFAULT_PRESET, load_params, parse_scalar, parse_sets
+from ..core.excitation import make_profile, PROFILES
+
+HELP = 'publish an identification profile as commands (breakaway, sweep, reversals, iso230)'
+
+
+def add_arguments(p):
+    """Add the options of ``excite`` to parser ``p``."""
+    p.add_argument('name', nargs='?', metavar='NAME',
+                   help=f'profile: {", ".join(PROFILES)}')
+    p.add_argument('--opt', action='append', metavar='NAME=VALUE',
+                   help='a profile option in SI units (repeatable; see --list)')
+    p.add_argument('--preset', help=f'axis preset for the defaults (default {DEFAULT_PRESET})')
+    p.add_argument('--params', help='ROS 2 parameter file of the axis')
+    p.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='override an axis parameter (repeatable)')
+    p.add_argument('--rate', type=float, default=100.0, help='commands per second [Hz]')
+    p.add_argument('--namespace', default='', help='namespace of the axis\' topics')
+    p.add_argument('--joint-commands', action='store_true',
+                   help='publish sensor_msgs/JointState on joint_commands instead of Float64')
+    p.add_argument('--prefix', default='', help='joint name prefix (with --joint-commands)')
+    p.add_argument('--wait-timeout', type=float, default=10.0, metavar='S',
+                   help='longest wait for a subscriber [s] (default 10)')
+    p.add_argument('--list', action='store_true',
+                   help='print the profiles with their options and durations')
+    p.add_argument('--dry-run', nargs='?', type=int, const=20, metavar='N',
+                   help='print the first N commands (default 20) and exit')
+    p.add_argument('--log', metavar='FILE.csv', help='write every command sent as '
+                   'index,time,value [-, s, SI]')
+
+
+def parse_options(items):
+    """Return {name: value} of ``--opt name=value`` strings."""
+    out = {}
+    for item in items or ():
+        name, sep, text = item.partition('=')
+        name = name.strip()
+        if not sep or not name:
+            raise CliError(f'--opt {item!r}: expected name=value')
+        out[name] = parse_scalar(text)
+    return out
+
+
+def run(args):
+    """List, dry-run or publish a profile; return the exit status."""
+    phys, _run = parse_sets(args.set)
+    params, label, _extra = load_params(args, phys)
+    options = parse_options(args.opt)
+    if args.list:
+        names = [args.name] if args.name else list(PROFILES)
+        for name in names:
+            profile = make_profile(name, params, **(options if args.name else {}))
+            print('\n'.join(profile.listing()))
+        print(f'(defaults for the axis {label})')
+        return 0
+    if not args.name:
+        raise CliError(f'give a profile NAME ({", ".join(PROFILES)}) or --list')
+    profile = make_profile(args.name, params, **options)
+    check_finite('--rate', args.rate)
+    if not 0.1 <= args.rate <= 10000.0:
+        raise CliError(f'--rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
+    if not (math.isfinite(args.wait_timeout) and args.wait_timeout >= 0.0):
+        raise CliError(f'--wait-timeout {args.wait_timeout!r} s must be >= 0')
+    if args.prefix and not args.joint_commands:
+        raise CliError('--prefix names joints: it needs --joint-commands')
+    if args.dry_run is not None:
+        return _dry_run(profile, args)
+    return _publish(profile, args)
+
+
+def _dry_run(profile, args):
+    """Print the first commands the profile would send; return 0."""
+    n_total = int(math.ceil(profile.duration * args.rate - 1e-9)) + 1
+    topic = 'joint_commands' if args.joint_commands else profile.topic
+    print(f'{profile.describe()}')
+    print(f'{n_total} commands on {topic} [{profile.unit}] over {profile.duration:.3f} s at '
+          f'{args.rate:g} Hz; the first {min(args.dry_run, n_total)}:')
+    for k in range(min(args.dry_run, n_total)):
+        t = k / args.rate
+        print(f'{t:10.4f} s  {profile(t):+.9g}')
+    return 0
+
+
+def _publish(profile, args):
+    """Publish the profile through the exciter node; return its exit code."""
+    exciter_mod = importlib.import_module('leadscrew_sim.ros.exciter')
+    log_file = writer = None
+    if args.log:
+        try:
+            log_file = open(args.log, 'w', newline='')
+        except OSError as exc:
+            raise CliError(f'--log {args.log}: {exc.strerror or exc}') from None
+        writer = csv.writer(log_file)
+        writer.writerow(['index', 'time', 'value'])
+    try:
+        ex = exciter_mod.Exciter(
+            profile, args.rate, namespace=args.namespace, joint_commands=args.joint_commands,
+            prefix=args.prefix, out=lambda line: print(line, flush=True),
+            log=None if writer is None else (lambda k, t, v: writer.writerow([k, repr(t),
+                                                                             repr(v)])))
+        try:
+            return ex.run(args.wait_timeout)
+        except exciter_mod.ExciteError as exc:
+            raise CliError(str(exc)) from None
+    finally:
+        if log_file is not None:
+            log_file.close()
