@@ -6,8 +6,6 @@ std_msgs/Float64 drive command per step with no timeout, delay or loss are
 taken in one vectorised go, with the same doubles CommandHold forms; all
 else goes event by event, step by step, through CommandHold itself.
 """
-import math
-
 import numpy as np
 
 from .args import CliError, NS
@@ -123,33 +121,21 @@ class CommandPass:
         self.k = k + 1
 
     def _float_run(self, run, k):
-        """Take a run of one Float64 drive command per step in one go (as CommandHold does)."""
+        """Take a run of one Float64 drive command per step in one go (CommandHold.take_series)."""
         kind = run[0][1]
-        datas = [data for _t, _kind, data in run]
-        values = _float64s(datas)
+        values = _float64s([data for _t, _kind, data in run])
         n = len(run)
-        if not np.isfinite(values).all():        # the hold rejects some: step by step
+        dt_ns, t0 = self.sim.dt_ns, self.sim.t0
+        times = t0 + (k + np.arange(n, dtype=np.int64)) * dt_ns
+        rows = self.hold.take_series(kind, values, times)
+        if rows is None:                # the hold rejects some: step by step
             for i, (_t, kind, data) in enumerate(run):
-                self._apply(kind, data, self.sim.t0 + (k + i) * self.sim.dt_ns)
+                self._apply(kind, data, int(times[i]))
                 self._step(k + i)
             return
-        hold = self.hold
-        rows = self.commands[k:k + n]
-        m = hold.nut_map
-        if kind == 'torque_command':
-            rows[:] = (0.0, math.nan, math.nan, 0.0)
-            rows[:, 3] = values
-        elif kind == 'velocity_command':
-            rows[:] = (1.0, math.nan, 0.0, 0.0)
-            rows[:, 2] = m.k * values
-        else:
-            rows[:] = (2.0, 0.0, math.nan, 0.0)
-            rows[:, 1] = m.theta0 + m.k * (values - m.x0)
-        hold.received += n - 1
-        last = self.sim.t0 + (k + n - 1) * self.sim.dt_ns
-        getattr(hold, kind)(float(values[-1]), last)
-        self.current = hold.changed_command(last)
-        self.forces[k:k + n] = hold.force
+        self.commands[k:k + n] = rows
+        self.current = self.hold.changed_command(int(times[-1]))
+        self.forces[k:k + n] = self.hold.force
         self.k = k + n
 
     def _apply(self, kind, data, t_k):

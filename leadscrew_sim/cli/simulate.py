@@ -154,13 +154,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         if k0 in changes_at:
             _apply_changes(model, hold, line, changes_at[k0], w, k0 * dt_ns)
         ks = range(k0, k1)
-        forces, changes = [], []
-        for k in ks:
-            f = force if force_fn is None else float(force_fn(k * dt))
-            if force_fn is not None and (f != force or k == 0):
-                changes.append(k)
-            forces.append(f)
-            force = f
+        forces, changes = _forces(force_fn, ks, dt, force)
+        force = float(forces[-1])
         if isinstance(torque_fn, DriveInput):
             torques, cols = torque_fn.block(ks, dt_ns, forces)
         elif needs_state:
@@ -178,6 +173,18 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         progress.update(ks.stop)
     progress.done()
     return stats
+
+
+def _forces(force_fn, ks, dt, before):
+    """Return the external forces [N] of ticks ``ks`` and the ticks where the force changes."""
+    if force_fn is None:
+        return np.zeros(len(ks)), []
+    forces = force_fn.block(np.arange(ks.start, ks.stop, dtype=np.int64) * dt)
+    changed = np.flatnonzero(forces != np.concatenate([[before], forces[:-1]]))
+    changes = [ks.start + int(i) for i in changed]
+    if ks.start == 0 and 0 not in changes:
+        changes.insert(0, 0)
+    return forces, changes
 
 
 def _apply_changes(model, hold, line, changes, w, log_time_ns):
@@ -218,7 +225,10 @@ def _count(hold, torques, ks, dt_ns):
 def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
     """Run a block in one compiled call; return the torques and the run's columns."""
     dt = dt_ns / NS
-    torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
+    if hasattr(torque_fn, 'block'):
+        torques = torque_fn.block(np.arange(ks.start, ks.stop, dtype=np.int64) * dt)
+    else:
+        torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
     _check_finite(torques, ks, dt)
     applied = torques
     if hold.delay or hold.drop_rate:
@@ -377,34 +387,45 @@ class DriveInput:
 
     def block(self, ks, dt_ns, forces):
         """Run ticks ``ks``; return ((topic, message rows), the run's columns)."""
-        n = len(ks)
-        commands = np.empty((n, 4))
-        xs, vs = np.empty(n), np.empty(n)
-        hold = self.hold
-        previous = self.previous
-        for i, k in enumerate(ks):
-            t_ns = k * dt_ns
-            x, v = self.fn(t_ns / NS)
-            xs[i], vs[i] = x, v
-            if self.topic == 'velocity_command':
-                reason = hold.velocity_command(v, t_ns)
-            elif self.topic == 'position_command':
-                reason = hold.position_command(x, t_ns)
-            else:
-                reason = hold.joint_commands([self.joint], [x], [v], [], t_ns)[1]
-            if reason and reason is not DROPPED:
-                raise CliError(f'drive input at t={t_ns / NS:.6f} s: {reason}')
-            command = hold.delayed(hold.command_at(t_ns))
-            previous = previous if command is None else command
-            commands[i] = previous
-        self.previous = previous
+        t_ns = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+        if hasattr(self.fn, 'block'):
+            xs, vs = self.fn.block(t_ns / NS)
+        else:
+            xs, vs = np.empty(len(ks)), np.empty(len(ks))
+            for i, t in enumerate(t_ns.tolist()):
+                xs[i], vs[i] = self.fn(t / NS)
+        commands = None
+        if self.topic != 'joint_commands':
+            commands = self.hold.take_series(
+                self.topic, vs if self.topic == 'velocity_command' else xs, t_ns)
+        if commands is None:
+            commands = self._one_by_one(t_ns, xs, vs)
+        self.previous = tuple(commands[-1])
         try:
             r = self.model.run(None, forces, commands=commands)
         except FloatingPointError as exc:
             raise CliError(f'simulation fault: {exc}') from None
-        t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+        t_cmd = t_ns
         if self.topic == 'joint_commands':
             rows = self.template.rows(t_cmd, [xs, vs])
         else:
             rows = C.F64_TEMPLATE.rows(None, [vs if self.topic == 'velocity_command' else xs])
         return (self.topic, rows), r
+
+    def _one_by_one(self, t_ns, xs, vs):
+        """Return the drive commands of the ticks at ``t_ns``, each through CommandHold."""
+        commands = np.empty((len(t_ns), 4))
+        hold, previous = self.hold, self.previous
+        for i, t in enumerate(t_ns.tolist()):
+            if self.topic == 'velocity_command':
+                reason = hold.velocity_command(float(vs[i]), t)
+            elif self.topic == 'position_command':
+                reason = hold.position_command(float(xs[i]), t)
+            else:
+                reason = hold.joint_commands([self.joint], [xs[i]], [vs[i]], [], t)[1]
+            if reason and reason is not DROPPED:
+                raise CliError(f'drive input at t={t / NS:.6f} s: {reason}')
+            command = hold.delayed(hold.command_at(t))
+            previous = previous if command is None else command
+            commands[i] = previous
+        return commands

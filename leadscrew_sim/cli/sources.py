@@ -2,6 +2,8 @@
 import bisect
 import math
 
+import numpy as np
+
 from .args import check_finite, CliError
 from ..core.commands import CommandHold
 
@@ -71,6 +73,30 @@ class Held:
         """Return the held value at time t [s]."""
         i = bisect.bisect_right(self.times, t + 1e-12)
         return self.values[i - 1] if i else self.before
+
+    def block(self, ts):
+        """Return the held values at the times ``ts`` [s] (an array), as ``__call__`` each."""
+        i = np.searchsorted(np.asarray(self.times, dtype=float), ts + 1e-12, side='right')
+        values = np.concatenate([[self.before], np.asarray(self.values, dtype=float)])
+        return values[i]
+
+
+class TorqueSource:
+    """
+    An open-loop torque input: ``fn(t) -> torque [N m]`` and its vectorised form.
+
+    Called as ``source(k, t, x, v)`` like every torque source (tick, time [s],
+    nut position [m], nut velocity [m/s]); ``block(ts)`` returns the torques
+    at the times ``ts`` [s] with the same doubles.
+    """
+
+    def __init__(self, scalar, vector):
+        """Keep ``scalar(t)`` and ``vector(ts)``."""
+        self.scalar, self.block = scalar, vector
+
+    def __call__(self, k, t, x, v):
+        """Return the torque [N m] at time t [s]."""
+        return self.scalar(t)
 
 
 class MoveController:
@@ -150,11 +176,11 @@ def make_torque_source(args, params):
         raise CliError(f'give only one torque input, not {" and ".join(chosen)}')
     if args.torque_csv is not None:
         held = Held(*read_csv_series(args.torque_csv, 'torque'))
-        return (lambda k, t, x, v: held(t)), f'torque_csv={args.torque_csv}'
+        return TorqueSource(held, held.block), f'torque_csv={args.torque_csv}'
     if args.profile is None:
         c = float(args.torque or 0.0)
         check_finite('--torque', c)
-        return (lambda k, t, x, v: c), f'torque={c}'
+        return TorqueSource(lambda t: c, lambda ts: np.full(len(ts), c)), f'torque={c}'
     if args.profile == 'move':
         return _move_source(args, params)
     amp = 0.5 * params.max_torque if args.amplitude is None else args.amplitude
@@ -162,13 +188,16 @@ def make_torque_source(args, params):
     f = args.frequency
     if args.profile == 'step':
         t_step = args.step_time
-        return (lambda k, t, x, v: amp if t >= t_step else 0.0), (
+        return TorqueSource(lambda t: amp if t >= t_step else 0.0,
+                            lambda ts: np.where(ts >= t_step, amp, 0.0)), (
             f'profile=step amplitude={amp} step_time={t_step}')
     if args.profile == 'ramp':
         dur = args.duration
-        return (lambda k, t, x, v: amp * t / dur), f'profile=ramp amplitude={amp}'
+        return TorqueSource(lambda t: amp * t / dur, lambda ts: amp * ts / dur), (
+            f'profile=ramp amplitude={amp}')
     w = 2.0 * math.pi * f
-    return (lambda k, t, x, v: amp * math.sin(w * t)), f'profile=sine amplitude={amp} f={f}'
+    return TorqueSource(lambda t: amp * math.sin(w * t), lambda ts: amp * np.sin(w * ts)), (
+        f'profile=sine amplitude={amp} f={f}')
 
 
 def _move_source(args, params):
@@ -199,7 +228,7 @@ def make_force_source(args):
         check_finite('--force', args.force)
         c = float(args.force)
         _check_force('--force', c)
-        return (lambda t: c), f'force={c}'
+        return Held([], [], before=c), f'force={c}'
     return None, ''
 
 
@@ -208,6 +237,38 @@ def _check_force(what, value):
     reason = CommandHold().external_force(value)
     if reason is not None:
         raise CliError(f'{what}: {reason}')
+
+
+class DriveSource:
+    """
+    A drive input: ``source(t) -> (nut position [m] or NaN, nut velocity [m/s] or NaN)``.
+
+    ``block(ts)`` returns the two arrays at the times ``ts`` [s] with the same doubles.
+    """
+
+    def __init__(self, position, velocity):
+        """Keep the position and velocity inputs: each a Held series, a float or None."""
+        self.position, self.velocity = position, velocity
+
+    @staticmethod
+    def _at(value, t):
+        if value is None:
+            return math.nan
+        return value(t) if callable(value) else value
+
+    @staticmethod
+    def _block(value, ts):
+        if value is None or not callable(value):
+            return np.full(len(ts), math.nan if value is None else value)
+        return value.block(ts)
+
+    def __call__(self, t):
+        """Return (position [m], velocity [m/s]) at time t [s]."""
+        return self._at(self.position, t), self._at(self.velocity, t)
+
+    def block(self, ts):
+        """Return (positions [m], velocities [m/s]) at the times ``ts`` [s]."""
+        return self._block(self.position, ts), self._block(self.velocity, ts)
 
 
 class Trapezoid:
@@ -255,7 +316,6 @@ def make_drive_source(args, params):
     ``position_command``, or ``joint_commands`` (nut joint position and velocity
     feed-forward, for the trapezoidal move).
     """
-    nan = float('nan')
     chosen = [n for n, v in (('--velocity', args.velocity), ('--velocity-csv', args.velocity_csv),
                              ('--position', args.position), ('--position-csv', args.position_csv))
               if v is not None]
@@ -272,21 +332,23 @@ def make_drive_source(args, params):
     if args.velocity is not None:
         c = float(args.velocity)
         check_finite('--velocity', c)
-        return (lambda t: (nan, c)), 'velocity_command', f'velocity={c}'
+        return DriveSource(None, c), 'velocity_command', f'velocity={c}'
     if args.position is not None:
         c = float(args.position)
         check_finite('--position', c)
         _check_stroke('--position', c, params)
-        return (lambda t: (c, nan)), 'position_command', f'position={c}'
+        return DriveSource(c, None), 'position_command', f'position={c}'
     if args.velocity_csv is not None:
         held = Held(*read_csv_series(args.velocity_csv, 'velocity'))
-        return (lambda t: (nan, held(t))), 'velocity_command', f'velocity_csv={args.velocity_csv}'
+        return (DriveSource(None, held), 'velocity_command',
+                f'velocity_csv={args.velocity_csv}')
     if args.position_csv is not None:
         times, values = read_csv_series(args.position_csv, 'position')
         for v in values:
             _check_stroke(f'position CSV {args.position_csv}', v, params)
         held = Held(times, values, before=params.initial_position)
-        return (lambda t: (held(t), nan)), 'position_command', f'position_csv={args.position_csv}'
+        return (DriveSource(held, None), 'position_command',
+                f'position_csv={args.position_csv}')
     target = args.target if args.target is not None else params.initial_position + 0.01
     _check_stroke('--target', target, params)
     for name, value in (('--speed', args.speed), ('--accel', args.accel)):

@@ -26,8 +26,10 @@ except ImportError:  # pragma: no cover
 # cache: compiled code is kept on disk (NUMBA_CACHE_DIR). error_model 'numpy': a
 # division by zero gives inf/nan instead of raising. _nrt=False: the functions
 # allocate nothing, so they are compiled without the numba runtime and the
-# reference counting of their array arguments is skipped.
-JIT_OPTIONS = dict(cache=True, error_model='numpy', fastmath=False, _nrt=False)
+# reference counting of their array arguments is skipped. nogil: they touch no
+# Python object, so they release the GIL while they run (simulate and resim
+# compress and write the previous block in another thread meanwhile).
+JIT_OPTIONS = dict(cache=True, error_model='numpy', fastmath=False, _nrt=False, nogil=True)
 
 #: The compiled functions, for refresh_cache().
 DISPATCHERS = []

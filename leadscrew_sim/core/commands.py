@@ -40,6 +40,8 @@ are in the screw joint's sense (theta).
 import collections
 import math
 
+import numpy as np
+
 from .drive import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
 from .params import ScrewParams
 
@@ -362,6 +364,51 @@ class CommandHold:
                     f'[-{EXTERNAL_FORCE_LIMIT:g}, {EXTERNAL_FORCE_LIMIT:g}] N')
         self.force = value
         return None
+
+    def take_series(self, kind, values, times_ns):
+        """
+        Take one Float64 drive command per step at once; return the drive commands, or None.
+
+        The vectorised form of calling ``kind`` with ``values[i]`` at
+        ``times_ns[i]`` and :meth:`command_at` right after each: rows of the
+        same doubles. Returns None and takes nothing when a value is not
+        finite or commands may be lost or delayed (take them one by one then).
+
+        Parameters
+        ----------
+        kind : str
+            ``'torque_command'`` [N m], ``'velocity_command'`` [m/s] or
+            ``'position_command'`` [m].
+        values : array_like of float
+            The commands, one per step.
+        times_ns : array_like of int
+            Their times [ns].
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 4), or None
+            (mode, position [rad], velocity [rad/s], effort [N m]) per step.
+
+        """
+        v = np.asarray(values, dtype=float)
+        if self.delay > 0 or self.drop_rate > 0.0 or not len(v) or not np.isfinite(v).all():
+            return None
+        rows = np.empty((len(v), 4))
+        m = self.nut_map
+        if kind == 'torque_command':
+            rows[:] = (MODE_TORQUE, NAN, NAN, 0.0)
+            rows[:, 3] = v
+        elif kind == 'velocity_command':
+            rows[:] = (MODE_VELOCITY, NAN, 0.0, 0.0)
+            rows[:, 2] = m.k * v
+        elif kind == 'position_command':
+            rows[:] = (MODE_POSITION, 0.0, NAN, 0.0)
+            rows[:, 1] = m.theta0 + m.k * (v - m.x0)
+        else:
+            raise ValueError(f'unknown Float64 drive command {kind!r}')
+        self.received += len(v) - 1
+        getattr(self, kind)(float(v[-1]), int(times_ns[-1]))
+        return rows
 
     def command_at(self, now_ns):
         """

@@ -26,6 +26,8 @@ closes before the first message that is later than all it holds. Messages of
 one tick share their log time, so a tick never spans two chunks and the
 chunks' time ranges do not overlap when the messages come in time order.
 """
+import collections
+from concurrent.futures import ThreadPoolExecutor
 import struct
 import zlib
 
@@ -72,15 +74,23 @@ class McapWriter:
 
     ``chunk_size``: uncompressed bytes after which a chunk is closed;
     ``zstd_level``: compression level of the chunks (zstandard's levels; 3 is
-    its default). The stream is only written to, never sought, so a pipe or
+    its default). ``background``: a thread of its own compresses the chunks
+    and writes everything to the stream, in order, while the caller goes on
+    (zstandard and the file write release the GIL); at most three writes
+    wait, and an I/O error is raised by the call after it, or by
+    :meth:`flush` and :meth:`finish`. The stream is only written to, never sought, so a pipe or
     a file opened ``'wb'`` both work. I/O errors propagate (``OSError``).
     """
 
-    def __init__(self, stream, *, profile='', library='', chunk_size=1 << 20, zstd_level=1):
+    def __init__(self, stream, *, profile='', library='', chunk_size=1 << 20, zstd_level=1,
+                 background=False):
         self._out = stream
         self._pos = 0
         self._chunk_size = int(chunk_size)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
+        self._pool = ThreadPoolExecutor(1) if background else None
+        self._tasks = collections.deque()   # the pool's tasks under way
+        self._layouts = {}             # (channel ids, payload lengths) -> row layout
         self._schemas = []             # record bytes, in id order
         self._channels = []
         self._close_due = False        # close the chunk at the next later log time
@@ -91,8 +101,9 @@ class McapWriter:
         self._chunk_indexes = []       # record bytes
         self._metadata_indexes = []
         self._chunk_count = 0
-        # the open chunk
-        self._buf = bytearray()
+        # the open chunk: its records as bytes-like parts, and their length
+        self._parts = []
+        self._nbuf = 0
         self._index = {}               # channel id -> array of (log_time, offset) pairs
         self._c_start = self._c_end = None
         self._finished = False
@@ -110,8 +121,30 @@ class McapWriter:
         return self._message_count
 
     def _write(self, data):
+        """Write ``data`` after everything before it (in the background writer, if any)."""
+        self._run(self._write_now, data)
+
+    def _write_now(self, data):
         self._out.write(data)
         self._pos += len(data)
+
+    def _run(self, fn, *args):
+        """Run ``fn(*args)`` now, or queue it behind the earlier writes (at most 3 under way)."""
+        if self._pool is None:
+            fn(*args)
+            return
+        self._tasks.append(self._pool.submit(fn, *args))
+        while len(self._tasks) > 3 or (self._tasks and self._tasks[0].done()):
+            self._tasks.popleft().result()        # re-raises the writer's OSError
+
+    def _drain(self):
+        """Wait until every queued write is done (re-raising its error)."""
+        while self._tasks:
+            self._tasks.popleft().result()
+
+    def _append(self, data):
+        self._parts.append(data)
+        self._nbuf += len(data)
 
     def register_schema(self, name, encoding, data):
         """Put a Schema record into the open chunk; return its id (1, 2, ...)."""
@@ -119,7 +152,7 @@ class McapWriter:
         rec = _record(OP_SCHEMA, struct.pack('<H', sid) + _string(name) + _string(encoding)
                       + _U32.pack(len(data)) + bytes(data))
         self._schemas.append(rec)
-        self._buf += rec
+        self._append(rec)
         return sid
 
     def register_channel(self, topic, message_encoding, schema_id, metadata=None):
@@ -129,7 +162,7 @@ class McapWriter:
                       + _string(message_encoding) + _string_map(dict(metadata or {})))
         self._channels.append(rec)
         self._counts[cid] = 0
-        self._buf += rec
+        self._append(rec)
         return cid
 
     def flush_soon(self):
@@ -142,31 +175,33 @@ class McapWriter:
             flush = self._flush_due
             self.close_chunk()
             if flush:
-                self._out.flush()
+                self._run(self._out.flush)
 
     def add_metadata(self, name, data):
         """Write a Metadata record (``{str: str}``) outside any chunk."""
+        self._run(self._metadata_now, name, dict(data))
+
+    def _metadata_now(self, name, data):
         rec = _record(OP_METADATA, _string(name) + _string_map(data))
         self._metadata_indexes.append(_record(
             OP_METADATA_INDEX, struct.pack('<QQ', self._pos, len(rec)) + _string(name)))
-        self._write(rec)
+        self._write_now(rec)
 
     # ---------------------------------------------------------------- messages
     def add_message(self, channel_id, log_time, data, publish_time, sequence=0):
         """Append one message to the open chunk (closed between ticks once it is full)."""
         if self._close_due:
             self._close_before(log_time)
-        buf = self._buf
-        off = len(buf)
-        buf += _MESSAGE.pack(OP_MESSAGE, 22 + len(data), channel_id, sequence, log_time,
-                             publish_time)
-        buf += data
         idx = self._index.get(channel_id)
         if idx is None:
             if channel_id not in self._counts:
-                del buf[off:]
                 raise ValueError(f'unknown channel id {channel_id!r}')
             idx = self._index[channel_id] = []
+        off = self._nbuf
+        rec = _MESSAGE.pack(OP_MESSAGE, 22 + len(data), channel_id, sequence, log_time,
+                            publish_time) + data
+        self._parts.append(rec)
+        self._nbuf += len(rec)
         idx.append((log_time, off))
         self._counts[channel_id] += 1
         self._message_count += 1
@@ -176,7 +211,7 @@ class McapWriter:
             self._c_start = log_time
         elif log_time > self._c_end:
             self._c_end = log_time
-        if len(buf) >= self._chunk_size:
+        if self._nbuf >= self._chunk_size:
             self._close_due = True
 
     def add_rows(self, channel_ids, payloads, log_times, sequences):
@@ -199,21 +234,10 @@ class McapWriter:
         n = len(payloads[0])
         if n == 0:
             return
-        names, formats, offsets, starts = [], [], [], []
-        at = 0
-        for j, p in enumerate(payloads):
+        for p in payloads:
             if p.ndim != 2 or len(p) != n:
                 raise ValueError('payloads must be 2-D arrays with one row per message')
-            starts.append(at)
-            for name, fmt, off in (('op', 'u1', 0), ('len', '<u8', 1), ('ch', '<u2', 9),
-                                   ('seq', '<u4', 11), ('lt', '<u8', 15), ('pt', '<u8', 23),
-                                   ('d', ('u1', (p.shape[1],)), 31)):
-                names.append(f'{name}{j}')
-                formats.append(fmt)
-                offsets.append(at + off)
-            at += MESSAGE_OVERHEAD + p.shape[1]
-        row = np.dtype({'names': names, 'formats': formats, 'offsets': offsets,
-                        'itemsize': at})
+        head, starts, at = self._layout(channel_ids, [p.shape[1] for p in payloads])
         times = np.stack([np.asarray(t[:n], dtype=np.uint64) for t in log_times])
         row_min, row_max = times.min(axis=0), times.max(axis=0)
         cut_ok = np.empty(n, dtype=bool)        # a chunk may start at row j
@@ -222,94 +246,123 @@ class McapWriter:
         cuts = np.flatnonzero(cut_ok)
         k = 0
         while k < n:
-            if ((self._close_due or len(self._buf) >= self._chunk_size) and cut_ok[k]
+            if ((self._close_due or self._nbuf >= self._chunk_size) and cut_ok[k]
                     and self._c_end is not None):
                 flush = self._flush_due
                 self.close_chunk()
                 if flush:
-                    self._out.flush()
-            room = max(1, (self._chunk_size - len(self._buf)) // at)
+                    self._run(self._out.flush)
+            room = max(1, (self._chunk_size - self._nbuf) // at)
             nxt = np.searchsorted(cuts, k + room)       # the rows up to a cut past the room
             r = (int(cuts[nxt]) if nxt < len(cuts) else n) - k
-            block = np.zeros(r, dtype=row)
-            base = len(self._buf)
+            block = np.empty((r, at), dtype=np.uint8)
+            base = self._nbuf
             for j, cid in enumerate(channel_ids):
-                lt = np.asarray(log_times[j][k:k + r], dtype=np.uint64)
-                block[f'op{j}'] = OP_MESSAGE
-                block[f'len{j}'] = 22 + payloads[j].shape[1]
-                block[f'ch{j}'] = cid
-                block[f'seq{j}'] = np.asarray(sequences[j][k:k + r]) & 0xFFFFFFFF
-                block[f'lt{j}'] = lt
-                block[f'pt{j}'] = lt
-                block[f'd{j}'] = payloads[j][k:k + r]
+                s, w = starts[j], payloads[j].shape[1]
+                lt = times[j, k:k + r].astype('<u8').view(np.uint8).reshape(r, 8)
+                block[:, s:s + 11] = head[j]
+                block[:, s + 11:s + 15] = (np.asarray(sequences[j][k:k + r]) & 0xFFFFFFFF) \
+                    .astype('<u4').view(np.uint8).reshape(r, 4)
+                block[:, s + 15:s + 23] = lt
+                block[:, s + 23:s + 31] = lt
+                block[:, s + 31:s + 31 + w] = payloads[j][k:k + r]
                 pairs = np.empty((r, 2), dtype=np.uint64)
-                pairs[:, 0] = lt
-                pairs[:, 1] = base + starts[j] + at * np.arange(r, dtype=np.uint64)
+                pairs[:, 0] = times[j, k:k + r]
+                pairs[:, 1] = base + s + at * np.arange(r, dtype=np.uint64)
                 self._index.setdefault(cid, []).append(pairs)
                 self._counts[cid] += r
-                lo, hi = int(lt.min()), int(lt.max())
-                if self._c_start is None:
-                    self._c_start, self._c_end = lo, hi
-                else:
-                    self._c_start, self._c_end = min(self._c_start, lo), max(self._c_end, hi)
-            self._buf += block.tobytes()
+            lo, hi = int(row_min[k:k + r].min()), int(row_max[k:k + r].max())
+            if self._c_start is None:
+                self._c_start, self._c_end = lo, hi
+            else:
+                self._c_start, self._c_end = min(self._c_start, lo), max(self._c_end, hi)
+            self._parts.append(block)
+            self._nbuf += block.nbytes
             self._message_count += r * m
             k += r
-            if len(self._buf) >= self._chunk_size:
+            if self._nbuf >= self._chunk_size:
                 self._close_due = True
+
+    def _layout(self, channel_ids, widths):
+        """Return (the 11 fixed header bytes per channel, start of each message, row length)."""
+        key = (tuple(channel_ids), tuple(widths))
+        layout = self._layouts.get(key)
+        if layout is None:
+            heads, starts, at = [], [], 0
+            for cid, w in zip(channel_ids, widths):
+                heads.append(np.frombuffer(_PREFIX.pack(OP_MESSAGE, 22 + w)
+                                           + struct.pack('<H', cid), dtype=np.uint8))
+                starts.append(at)
+                at += MESSAGE_OVERHEAD + w
+            layout = self._layouts[key] = (heads, starts, at)
+        return layout
 
     def close_chunk(self):
         """Compress and write the open chunk with its message indexes (no-op if empty)."""
         if self._c_start is None:       # no message: the records go out as they are
-            if self._buf:
-                self._write(bytes(self._buf))
-                self._buf = bytearray()
+            if self._parts:
+                self._write(b''.join(self._parts))
+                self._parts, self._nbuf = [], 0
             self._close_due = self._flush_due = False
             return
-        data = bytes(self._buf)
-        packed = self._zstd.compress(data)
-        body = (struct.pack('<QQQI', self._c_start, self._c_end, len(data), zlib.crc32(data))
-                + _string('zstd') + struct.pack('<Q', len(packed)))
-        start = self._pos
-        self._write(_PREFIX.pack(OP_CHUNK, len(body) + len(packed)) + body)
-        self._write(packed)
-        chunk_length = self._pos - start
-        index_start = self._pos
-        offsets, parts = {}, []
-        at = index_start
-        for cid in sorted(self._index):
-            pairs = b''.join(np.asarray(p, dtype='<u8').tobytes() for p in _runs(
-                self._index[cid]))
-            rec = _record(OP_MESSAGE_INDEX, struct.pack('<HI', cid, len(pairs)) + pairs)
-            offsets[cid] = at
-            at += len(rec)
-            parts.append(rec)
-        self._write(b''.join(parts))
-        self._chunk_indexes.append(_record(OP_CHUNK_INDEX, (
-            struct.pack('<QQQQ', self._c_start, self._c_end, start, chunk_length)
-            + _id_map(offsets) + struct.pack('<Q', self._pos - index_start) + _string('zstd')
-            + struct.pack('<QQ', len(packed), len(data)))))
-        self._chunk_count += 1
-        if self._t_start is None:
-            self._t_start, self._t_end = self._c_start, self._c_end
-        else:
-            self._t_start = min(self._t_start, self._c_start)
-            self._t_end = max(self._t_end, self._c_end)
-        self._buf = bytearray()
+        self._run(self._chunk_now, self._parts, self._nbuf, self._index, self._c_start,
+                  self._c_end)
+        self._parts, self._nbuf = [], 0
         self._index = {}
         self._c_start = self._c_end = None
         self._close_due = self._flush_due = False
 
+    def _chunk_now(self, parts, size, index, c_start, c_end):
+        """Write one chunk (compressed here) with its message indexes and index record."""
+        z = self._zstd.compressobj(size=size)
+        packed, crc = [], 0
+        for part in parts:
+            packed.append(z.compress(part))
+            crc = zlib.crc32(part, crc)
+        packed.append(z.flush())
+        packed = b''.join(packed)
+        body = (struct.pack('<QQQI', c_start, c_end, size, crc)
+                + _string('zstd') + struct.pack('<Q', len(packed)))
+        start = self._pos
+        self._write_now(_PREFIX.pack(OP_CHUNK, len(body) + len(packed)) + body)
+        self._write_now(packed)
+        chunk_length = self._pos - start
+        index_start = self._pos
+        offsets, parts = {}, []
+        at = index_start
+        for cid in sorted(index):
+            pairs = b''.join(np.asarray(p, dtype='<u8').tobytes() for p in _runs(index[cid]))
+            rec = _record(OP_MESSAGE_INDEX, struct.pack('<HI', cid, len(pairs)) + pairs)
+            offsets[cid] = at
+            at += len(rec)
+            parts.append(rec)
+        self._write_now(b''.join(parts))
+        self._chunk_indexes.append(_record(OP_CHUNK_INDEX, (
+            struct.pack('<QQQQ', c_start, c_end, start, chunk_length)
+            + _id_map(offsets) + struct.pack('<Q', self._pos - index_start) + _string('zstd')
+            + struct.pack('<QQ', len(packed), size))))
+        self._chunk_count += 1
+        if self._t_start is None:
+            self._t_start, self._t_end = c_start, c_end
+        else:
+            self._t_start = min(self._t_start, c_start)
+            self._t_end = max(self._t_end, c_end)
+
     def flush(self):
-        """Write the open chunk and flush the stream (no fsync)."""
+        """Write the open chunk and flush the stream (no fsync); wait for the writes."""
         self.close_chunk()
-        self._out.flush()
+        self._run(self._out.flush)
+        self._drain()
 
     def finish(self):
         """Write the last chunk, Data End, the summary and the footer; flush the stream."""
         if self._finished:
             return
         self.close_chunk()
+        self._drain()
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
         self._write(_record(OP_DATA_END, _U32.pack(0)))
         summary_start = self._pos
         groups = []

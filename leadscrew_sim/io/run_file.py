@@ -103,7 +103,7 @@ class RunWriter:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunFileError(f'cannot create the directory of {self.path}: {exc}') from None
-        self.rec = McapRecorder(self.path, flush_interval=1.0)
+        self.rec = McapRecorder(self.path, flush_interval=1.0, background=True)
         if self.rec.error:
             raise RunFileError(f'cannot write {self.rec.error}')
         self.ids = {}
