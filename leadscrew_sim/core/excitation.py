@@ -246,11 +246,13 @@ class Reversals(Profile):
     """
     Small back-and-forth moves of the nut with a dwell after each, so the backlash shows.
 
-    From the centre: to centre + amplitude, dwell, to centre - amplitude,
-    dwell, ``cycles`` times, back to the centre, dwell. Each move is a ramp
-    of the position target at ``speed``. On a loaded vertical axis the nut
-    stays on the flank the load presses; the backlash shows on a horizontal
-    axis or with a changing external force.
+    Each cycle: from the centre to centre + amplitude, dwell, back to the
+    centre, dwell, to centre - amplitude, dwell, back to the centre, dwell;
+    ``cycles`` times. The centre is reached from above and from below in
+    every cycle, so :func:`.figures.reversal_error` measures the lost motion
+    there. Each move is a ramp of the position target at ``speed``. On a
+    loaded vertical axis the nut stays on the flank the load presses; the
+    backlash shows on a horizontal axis or with a changing external force.
     """
 
     name = 'reversals'
@@ -281,10 +283,11 @@ class Reversals(Profile):
         b.move(c, o['speed'], 'to centre')
         for _k in range(o['cycles']):
             for s in (1, -1):
-                b.move(c + s * a, o['speed'], f'move {"+" if s > 0 else "-"}', s)
-                b.hold(o['dwell'], f'dwell {"+" if s > 0 else "-"}', 0)
-        b.move(c, o['speed'], 'to centre', 1)
-        b.hold(o['dwell'], 'dwell centre', 0)
+                sign = '+' if s > 0 else '-'
+                b.move(c + s * a, o['speed'], f'move {sign}', s)
+                b.hold(o['dwell'], f'dwell {sign}', s)
+                b.move(c, o['speed'], f'back from {sign}', -s)
+                b.hold(o['dwell'], f'dwell centre from {sign}', -s)
         return b.out
 
 

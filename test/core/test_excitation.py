@@ -91,10 +91,11 @@ def test_durations_are_those_counted_from_the_options():
     assert b.duration == pytest.approx(3 * 0.25 + 4 * 1.5, rel=1e-12)
     s = E.make_profile('sweep', p, levels=5, settle=0.2, measure=0.4, stop=0.1)
     assert s.duration == pytest.approx(2 * 5 * (0.2 + 0.4) + 0.1, rel=1e-12)
-    # Reversals from the centre: a, then 2a per move, a back: 4 a cycles of travel.
+    # Reversals from the centre: out and back to each side, 4 a of travel and
+    # 4 dwells per cycle.
     a, n, dw, v = 3e-4, 4, 0.3, 2e-3
     r = E.make_profile('reversals', p, amplitude=a, cycles=n, dwell=dw, speed=v)
-    assert r.duration == pytest.approx(4 * a * n / v + (2 * n + 1) * dw, rel=1e-9)
+    assert r.duration == pytest.approx(4 * a * n / v + 4 * n * dw, rel=1e-9)
     # ISO 230-2: from x0 to P1 - o, each cycle up and down over travel + 2 o,
     # back to x0; 2 m dwells per cycle and a final dwell of min(dwell, 0.5 s).
     m, cyc, trav, o, dw, v, c = 4, 3, 0.02, 1e-3, 0.7, 0.01, 0.01

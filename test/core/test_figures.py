@@ -221,8 +221,10 @@ def test_reversal_error_of_a_synthetic_run_is_its_known_offset():
     assert r.max_reversal == pytest.approx(e_up + e_down, abs=tol)
 
 
-@pytest.mark.parametrize('feedback', ['motor_encoder', 'linear_scale'])
-def test_reversal_error_of_a_horizontal_axis_is_its_backlash(feedback):
+@pytest.mark.parametrize('name, feedback', [('iso230', 'motor_encoder'),
+                                            ('iso230', 'linear_scale'),
+                                            ('reversals', 'motor_encoder')])
+def test_reversal_error_of_a_horizontal_axis_is_its_backlash(name, feedback):
     # Horizontal, guide friction 20 N: the drive closes on the motor encoder,
     # so the nut lags a target by half the backlash on either side (plus the
     # flank deflection F/k = 0.2 um, less what it coasts into the gap after the
@@ -230,8 +232,10 @@ def test_reversal_error_of_a_horizontal_axis_is_its_backlash(feedback):
     # the loop closes on the nut and the backlash vanishes from B (below 5 % b).
     p = ScrewParams.from_dict(dict(inclination=0.0, guide_coulomb=20.0,
                                    drive_feedback=feedback), base=load_preset('tr12x3'))
-    prof = make_profile('iso230', p, targets=3, cycles=2, travel=0.01, dwell=1.0)
-    r = F.derived_figures('iso230', run_profile(p, prof))['reversal']
+    options = dict(targets=3, cycles=2, travel=0.01) if name == 'iso230' else dict(cycles=2)
+    prof = make_profile(name, p, dwell=1.0, **options)
+    r = F.derived_figures(name, run_profile(p, prof))['reversal']
+    assert len(r.targets) == (3 if name == 'iso230' else 1)
     b, deflection = p.backlash, p.guide_coulomb / p.contact_stiffness
     if feedback == 'motor_encoder':
         assert all(-b - 2 * deflection <= x <= -0.95 * b for x in r.reversal), r
