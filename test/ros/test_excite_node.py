@@ -16,9 +16,11 @@ import sys
 
 from helpers import cli, cli_ok, NS
 from leadscrew_sim import load_preset
+from leadscrew_sim.core import figures as F
 from leadscrew_sim.core.excitation import make_profile
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
 import pytest
 
 #: Position loop tolerance at a dwell's end [m]: the drive's PI loop settles on the
@@ -103,6 +105,16 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     for target, t_end in dwells:
         j = max(i for i, t in enumerate(times) if t <= t_end)
         assert abs(states[j][1] - target) < POSITION_TOLERANCE, (target, states[j][1])
+
+    # The derived figures read the node's recording: each target once from each
+    # side, the deviations within the same tolerance.
+    t_s = np.array(times, dtype=float) / NS
+    command = F.hold_series([lt / NS for lt, _d in cmds], [d.data for _lt, d in cmds], t_s)
+    ok = np.isfinite(command)
+    r = F.reversal_error(t_s[ok], command[ok], np.array([x for _t, x in states])[ok])
+    assert r.targets == pytest.approx(prof.target_positions(), abs=1e-15)
+    assert r.approaches == ((1, 1),) * 3
+    assert max(map(abs, r.mean_up + r.mean_down)) < POSITION_TOLERANCE, r
 
 
 @pytest.mark.timeout(180)
