@@ -3,7 +3,8 @@ The derived figures against the closed forms of the thread and against runs of t
 
 The profiles of core/excitation run through the model (torque mode tick by
 tick with the breakaway controller, velocity and position profiles through
-the drive, their commands passed through CommandHold as the node does); the
+the drive, their commands passed through CommandHold as the node does), and
+the sweep once through ``simulate``, its recording read with mcap_ros2; the
 oracles are the quasi-static relations of doc/model.md section 7, written
 out here from the geometry (lead angle, flank angle, thread factor), and for
 the reversal error a synthetic run whose deviations are known.
@@ -251,3 +252,52 @@ def test_hold_series_and_undefined_efficiency():
     # A level that did not move at about its speed (stuck) gives no efficiency.
     stuck = F.StribeckPoint(0.01, 1e-6, 0.1, 0.0, 1.0, 0.0, 1.0, 10)
     assert F.efficiencies([stuck], 50.0) == ([], {})
+
+
+def test_figures_of_a_simulate_recording_are_the_closed_forms(tmp_path):
+    # The sweep's commands at 1 kHz as simulate's --velocity-csv (zero-order
+    # hold: the row at t_k is the command of step k), the recording read with
+    # mcap_ros2: joint_states' screw joint (motor torque, rate) and nut joint,
+    # velocity_command at its log time. Fast levels as in the model test.
+    from helpers import cli_ok
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    sets = dict(bearing_viscous=0.0, guide_viscous=0.0)
+    p = ScrewParams.from_dict(sets, base=load_preset('tr8x8'))
+    prof = make_profile('sweep', p, levels=4, settle=0.3, measure=0.4)
+    t = np.arange(int(round(prof.duration / DT))) * DT
+    csv = tmp_path / 'sweep.csv'
+    csv.write_text('time,velocity\n' + ''.join(f'{float(a)!r},{float(b)!r}\n' for a, b in
+                                               zip(t, prof.values(t))))
+    out = tmp_path / 'sweep.mcap'
+    cli_ok('simulate', '--preset', 'tr8x8', *[a for k, v in sets.items()
+                                              for a in ('--set', f'{k}={v}')],
+           '--velocity-csv', csv, '--duration', prof.duration, '-o', out, '-q')
+    cmd, js = [], []
+    with open(out, 'rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _s, c, m, d in reader.iter_decoded_messages(
+                topics=['/velocity_command', '/joint_states']):
+            if c.topic == '/velocity_command':
+                cmd.append((m.log_time * 1e-9, d.data))
+            else:
+                js.append((m.log_time * 1e-9, d.effort[0], d.velocity[0], d.position[1],
+                           d.velocity[1]))
+    ts, tq, w, x, v = (np.array(col) for col in zip(*js))
+    # A state logged at t + dt carries the command logged at t.
+    command = F.hold_series([a + DT for a, _b in cmd], [b for _a, b in cmd], ts)
+    run = dict(time=ts, command=command, motor_torque=tq, motor_velocity=w, nut_position=x,
+               nut_velocity=v)
+    fig = F.derived_figures('sweep', run, load=F.axial_load(p))
+    th = Thread(p)
+    fast = [pt for pt in fig['stribeck']
+            if abs(pt.command) / math.sin(th.lam) >= 10 * p.stribeck_velocity]
+    assert len(fast) >= 4
+    for pt in fast:
+        mu = th.mu(pt.command)
+        closed = -th.raise_(mu) if pt.command > 0 else th.lower(mu)
+        assert pt.torque == pytest.approx(closed, rel=1e-5), (pt.command, pt.torque, closed)
+    best = fig['efficiency'][1]
+    mu_fast = th.mu(prof.options['v_max'])
+    assert best['forward'] == pytest.approx(th.eta(mu_fast), rel=1e-5)
+    assert best['backdrive'] == pytest.approx(th.eta_back(mu_fast), rel=1e-5)
