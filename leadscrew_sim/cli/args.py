@@ -148,3 +148,15 @@ class Progress:
         if self.shown:
             sys.stderr.write('\r' + ' ' * 70 + '\r')
             sys.stderr.flush()
+
+
+def add_compression_argument(p):
+    """Add ``--compression`` (of the MCAP chunks written) to parser ``p``."""
+    p.add_argument('--compression', choices=('lz4', 'zstd', 'none'), default='lz4',
+                   help='chunk compression of the MCAP written (default lz4: written and read '
+                        'about twice as fast as zstd, files about a third larger)')
+
+
+def compression_of(args):
+    """Return the McapWriter compression of ``--compression``."""
+    return '' if args.compression == 'none' else args.compression

@@ -9,6 +9,7 @@ the model then runs each stretch between parameter updates, resets and
 fault clearings in one compiled call. ``resim``, ``info``, ``plot`` and
 ``identify`` re-simulate through :class:`Resim`.
 """
+import itertools
 import math
 
 import numpy as np
@@ -76,12 +77,13 @@ class Resim:
         self.clock_mode = run_setting(meta, 'clock_mode', '')
         self.topics = {rel: rec.role_topic(rel) for rel in T.COMMAND_TOPICS + T.STATE_TOPICS}
         self.events = []            # (log_time [ns], kind, payload) in log-time order
-        self.states = {}            # rel -> ([step index], [bytes]) of the recorded states
+        self.states = {}            # rel -> (step indices, messages) of the recorded states
         order = self._read_messages()
         order += self._read_records()
         index = sorted(range(len(self.events)), key=order.__getitem__)
         self.events = [self.events[i] for i in index]
-        last_state = max((max(ks) for ks, _d in self.states.values() if ks), default=-1)
+        last_state = max((int(ks[-1]) for ks, _d in self.states.values() if len(ks)),
+                         default=-1)
         if last_state < 0:
             last_cmd = max([(e[0] - self.t0) // self.dt_ns for e in self.events] or [-1])
             last_state = last_cmd + 1
@@ -91,8 +93,37 @@ class Resim:
 
     def _read_messages(self):
         """Collect the commands and the recorded states; return the commands' sort keys."""
-        by_topic = {t: rel for rel, t in self.topics.items() if t}
+        topics = {rel: t for rel, t in self.topics.items() if t}
+        arrays = self.rec.topic_arrays(list(topics.values()))
+        if arrays is None:                  # no message index: the message list
+            return self._read_message_list(topics)
         order = []                  # (log time, rank among the messages of that log time)
+        for rel, topic in topics.items():
+            a = arrays[topic]
+            if rel in T.COMMAND_TOPICS:
+                times = a.log_times.tolist()
+                self.events.extend(zip(times, itertools.repeat(rel), a.messages()))
+                order.extend(zip(times, a.ranks.tolist()))
+            elif rel in T.STATE_TOPICS and len(a.log_times):
+                k, r = np.divmod(a.log_times - self.t0, self.dt_ns)
+                ok = np.flatnonzero((r == 0) & (k > 0))
+                k = k[ok]
+                o = ok[np.argsort(k, kind='stable')]
+                k = k[np.argsort(k, kind='stable')]
+                last = np.append(k[1:] != k[:-1], True)     # one state per tick: the last
+                keep = o[last]
+                data = a.data[keep] if isinstance(a.data, np.ndarray) else [
+                    a.data[i] for i in keep]
+                self.states[rel] = (k[last], data)
+        return order
+
+    def _read_message_list(self, topics):
+        """Collect commands and states from ``rec.messages`` (a file without message indexes)."""
+        if not self.rec.messages:
+            self.rec.load(list(topics.values()))
+        by_topic = {t: rel for rel, t in topics.items()}
+        order = []
+        states = {}
         same_t, rank = None, 0
         for log_time, topic, data in self.rec.messages:
             if log_time != same_t:
@@ -105,12 +136,10 @@ class Resim:
             elif rel in T.STATE_TOPICS:
                 k, r = divmod(log_time - self.t0, self.dt_ns)
                 if r == 0 and k > 0:
-                    ks, datas = self.states.setdefault(rel, ([], []))
-                    if ks and ks[-1] == k:      # one state per tick: the last recorded
-                        datas[-1] = data
-                    else:
-                        ks.append(k)
-                        datas.append(data)
+                    states.setdefault(rel, {})[k] = data
+        for rel, by_k in states.items():
+            ks = sorted(by_k)
+            self.states[rel] = (np.array(ks, dtype=np.int64), [by_k[k] for k in ks])
         return order
 
     def _read_records(self):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .args import CliError, parse_sets, Progress
+from .args import add_compression_argument, CliError, compression_of, parse_sets, Progress
 from .replay import Resim
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
@@ -26,6 +26,7 @@ def add_arguments(p):
     p.add_argument('file')
     p.add_argument('--set', action='append', metavar='NAME=VALUE')
     p.add_argument('--output', '-o', help='output MCAP (default <stem>.resim.mcap)')
+    add_compression_argument(p)
     p.add_argument('--quiet', '-q', action='store_true')
 
 
@@ -102,6 +103,8 @@ def _table_rows(rows, topic, labels, got):
 
 
 def _rows_of(datas):
+    if isinstance(datas, np.ndarray):
+        return datas
     lengths = {len(d) for d in datas}
     if len(lengths) != 1:
         return None
@@ -112,13 +115,13 @@ def _joint_states6(datas):
     """Return (n, 6): the first two positions, velocities and efforts of each JointState."""
     rows = _rows_of(datas)
     if rows is not None:
-        names = C.decode_joint_state(datas[0])[1]
+        names = C.decode_joint_state(bytes(datas[0]))[1]
         got = C.joint_state_template(names, 2, 2, 2).columns(rows) if len(names) == 2 else None
         if got is not None:
             return got
     out = np.full((len(datas), 6), np.nan)
     for i, d in enumerate(datas):
-        _s, _n, pos, vel, eff = C.decode_joint_state(d)
+        _s, _n, pos, vel, eff = C.decode_joint_state(bytes(d))
         for j, (a, b) in enumerate(((pos, 0), (pos, 1), (vel, 0), (vel, 1), (eff, 0),
                                     (eff, 1))):
             if len(a) > b:
@@ -132,7 +135,7 @@ def _float64s(datas):
     got = C.float64_template().columns(rows) if rows is not None else None
     if got is not None:
         return got
-    return np.array([[C.decode_float64(d)] for d in datas], dtype=float).reshape(-1, 1)
+    return np.array([[C.decode_float64(bytes(d))] for d in datas], dtype=float).reshape(-1, 1)
 
 
 def _wrench2(datas):
@@ -141,22 +144,22 @@ def _wrench2(datas):
     got = C.wrench_template().columns(rows) if rows is not None else None
     if got is not None:
         return got
-    out = [(f[0], t[0]) for _s, f, t in map(C.decode_wrench_stamped, datas)]
+    out = [(f[0], t[0]) for _s, f, t in (C.decode_wrench_stamped(bytes(d)) for d in datas)]
     return np.array(out, dtype=float).reshape(-1, 2)
 
 
 def _truth_values(datas):
     """Return (joint names, (n, 3 m) positions, velocities, efforts) of sim/joint_states."""
-    if not datas:
+    if not len(datas):
         return None, None
-    names = C.decode_joint_state(datas[0])[1]
+    names = C.decode_joint_state(bytes(datas[0]))[1]
     m = len(names)
     rows = _rows_of(datas)
     got = C.joint_state_template(names, m, m, m).columns(rows) if rows is not None else None
     if got is None:
         got = np.full((len(datas), 3 * m), np.nan)
         for i, d in enumerate(datas):
-            _s, nm, pos, vel, eff = C.decode_joint_state(d)
+            _s, nm, pos, vel, eff = C.decode_joint_state(bytes(d))
             if list(nm) == list(names) and len(pos) == len(vel) == len(eff) == m:
                 got[i] = list(pos) + list(vel) + list(eff)
     return names, got
@@ -167,14 +170,13 @@ def run(args):
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
         raise CliError('resim --set accepts physics parameters only')
-    rec = Recording(args.file)
-    sim = Resim(rec, phys_ov)
+    sim = Resim(Recording(args.file, load_messages=False), phys_ov)
     src = Path(args.file)
     out = args.output or str(src.with_name(src.name[:-5] if src.name.endswith('.mcap')
                                            else src.name)) + '.resim.mcap'
     if os.path.abspath(out) == os.path.abspath(args.file):
         raise CliError(f'--output {out} would overwrite the input file')
-    w = RunWriter(out, sim.prefix, params=sim.params)
+    w = RunWriter(out, sim.prefix, params=sim.params, compression=compression_of(args))
     meta = dict(sim.meta)
     meta.update({n: str(getattr(sim.params, n)) for n in ScrewParams.names()})
     w.rec.add_metadata(PARAMS_RECORD, meta)
@@ -209,8 +211,8 @@ def _report(args, sim, out, new):
         if n:
             overall = max(overall, float(mx))
     has = new.has_sensor | new.has_truth
-    ticks = {k for ks, _d in sim.states.values() for k in ks if k < len(has) and has[k]}
-    compared = len(ticks)
+    ks = np.unique(np.concatenate([ks for ks, _d in sim.states.values()] or [[]]).astype(int))
+    compared = int(np.count_nonzero(has[ks[ks < len(has)]]))
     note = ''
     if compared and overall == 0.0:
         note = (' (bit-identical)' if not bit_differences else

@@ -14,7 +14,8 @@ import time
 
 import numpy as np
 
-from .args import CliError, DEFAULT_PRESET, load_params, NS, parse_sets, Progress
+from .args import (add_compression_argument, CliError, compression_of, DEFAULT_PRESET,
+                   load_params, NS, parse_sets, Progress)
 from .sources import make_drive_source, make_force_source, make_torque_source
 from .schedule import read_schedule
 from ..core import layout as L
@@ -66,6 +67,7 @@ def add_arguments(p):
                    '[s, a parameter such as fault.jam, a YAML scalar]; each change acts from '
                    'the first step at or after its time')
     p.add_argument('--clock', action='store_true', help='also record /clock every tick')
+    add_compression_argument(p)
     p.add_argument('--output', '-o', help='output MCAP (default runs/sim_<preset>_<time>.mcap)')
     p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
 
@@ -100,7 +102,8 @@ def run(args):
     if drive is not None:
         torque_fn = DriveInput(drive[0], drive[1], model, prefix)
     out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
-    w = RunWriter(out, prefix, clock=args.clock, params=params)
+    w = RunWriter(out, prefix, clock=args.clock, params=params,
+                  compression=compression_of(args))
     w.rec.add_metadata(PARAMS_RECORD, parameters_record(
         params, label, rate, dt_ns, {'joint_prefix': prefix} if prefix else None))
     w.rec.add_metadata(CLI_RECORD, {

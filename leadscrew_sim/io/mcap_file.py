@@ -105,13 +105,15 @@ class McapRecorder(Guarded):
 
     ``flush_interval`` is in seconds of wall time (0 flushes on every write),
     ``chunk_size`` in uncompressed bytes; ``background``: chunks are
-    compressed and written by a thread of their own (see :class:`McapWriter`). I/O errors (``OSError``: unwritable
+    compressed and written by a thread of their own; ``compression``: of the
+    chunks (see :class:`McapWriter`). I/O errors (``OSError``: unwritable
     directory, disk full, ...) never escape: they set :attr:`error` to a
     one-line message and stop the recording; data flushed before stays in the
     file and can be read back with :func:`recover`.
     """
 
-    def __init__(self, path, *, flush_interval=1.0, chunk_size=1 << 20, background=False):
+    def __init__(self, path, *, flush_interval=1.0, chunk_size=1 << 20, background=False,
+                 compression='zstd'):
         super().__init__()
         if not flush_interval >= 0:
             raise ValueError(f'flush_interval must be >= 0 s, not {flush_interval!r}')
@@ -131,7 +133,8 @@ class McapRecorder(Guarded):
         try:
             self._fh = open(self.path, 'wb')
             self._writer = McapWriter(self._fh, profile='ros2', library=LIBRARY,
-                                      chunk_size=int(chunk_size), background=background)
+                                      chunk_size=int(chunk_size), background=background,
+                                      compression=compression)
             self._fh.flush()
             self._size = self._writer.position
         except OSError as exc:

@@ -82,10 +82,14 @@ class RunWriter:
         channels of :data:`DESCRIPTION_TOPICS` after the others; then
         :meth:`write_description` writes it and :meth:`write_tf` /
         :meth:`tf_rows` the transforms. ``None``: no description.
+    compression : str
+        Of the chunks: ``'lz4'`` (the default: the offline tools write and
+        read at the kernel's pace), ``'zstd'`` (a third smaller) or ``''``.
 
     """
 
-    def __init__(self, path, joint_prefix='', namespace='/', clock=False, params=None):
+    def __init__(self, path, joint_prefix='', namespace='/', clock=False, params=None,
+                 compression='lz4'):
         """Open the file and register the node's channels (resolved names)."""
         from .mcap_file import McapRecorder
         from .qos import qos_profile_yaml
@@ -103,7 +107,8 @@ class RunWriter:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise RunFileError(f'cannot create the directory of {self.path}: {exc}') from None
-        self.rec = McapRecorder(self.path, flush_interval=1.0, background=True)
+        self.rec = McapRecorder(self.path, flush_interval=1.0, background=True,
+                                compression=compression)
         if self.rec.error:
             raise RunFileError(f'cannot write {self.rec.error}')
         self.ids = {}
