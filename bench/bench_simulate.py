@@ -1,94 +1,116 @@
 """
-Benchmark ``leadscrew_sim simulate`` against the bare model loop, in one run.
+Benchmark ``leadscrew_sim simulate`` and ``resim`` against the bare block kernel, in one run.
 
-Run: .venv/bin/python bench/bench_simulate.py [--seconds 60] [--amplitude 0.4] [--profile]
-Prints wall time and x-real-time of (a) the bare loop (LeadScrewModel.advance
-tick by tick, same torque sequence), (b) the bare block kernel (model.run on
-blocks of simulate's size, same torques) and (c) simulate (model, encoding
-and MCAP recording of every default topic), the ratios of (c) to both and the
-bytes per simulated second. The default sine of 0.4 N m at 0.5 Hz moves the
-nut of the self-locking tr12x3 (a smaller one holds it still: no contact
-changes, no sliding). --profile adds the top functions of simulate by cProfile.
+Run: .venv/bin/python bench/bench_simulate.py [--seconds 60] [--excite iso230] [--repeat 3]
+
+The input is an identification profile through the servo drive (default
+``iso230``: ISO 230-2 bidirectional positioning in position mode, the nut
+travelling over +-96 mm of the tr12x3 stroke with reversals and dwells), cut
+to ``--seconds``. Printed side by side, each the best of ``--repeat`` runs:
+
+- the bare block kernel: ``model.run`` on blocks of simulate's size with the
+  very command rows simulate hands the drive (CommandHold.take_series);
+- ``simulate`` writing every default topic (lz4, zstd and uncompressed
+  chunks), in-process and warmed up; its start-up (parameters, robot
+  description, file) is the time of a one-tick run, subtracted for the
+  loop-only figure the ratios use;
+- ``resim`` of the lz4 file (reading, re-simulating, writing, comparing),
+  start-up likewise subtracted.
+
+The ratios to the bare block kernel and the x-real-time figures are printed,
+with the bytes per simulated second.
 """
 import argparse
-import cProfile
-import io
-import math
 import os
-import pstats
 import sys
 import tempfile
 import time
 
+import numpy as np
+
 from leadscrew_sim import cli, LeadScrewModel, load_preset
+from leadscrew_sim.cli.simulate import BLOCK_TICKS
+from leadscrew_sim.core.commands import CommandHold, NutMap
+from leadscrew_sim.core.excitation import make_profile
 
 
-def bare_loop(seconds, rate, amplitude, frequency):
-    """Return the wall time [s] of the model loop alone."""
-    m = LeadScrewModel(load_preset('tr12x3'), dt=round(1e9 / rate) / 1e9)
-    m.advance(0.0)
-    m.reset()
-    n = int(round(seconds * rate))
-    dt = 1.0 / rate
-    w = 2 * math.pi * frequency
-    t0 = time.perf_counter()
-    for k in range(n):
-        m.advance(amplitude * math.sin(w * k * dt))
-    return time.perf_counter() - t0
-
-
-def bare_blocks(seconds, rate, amplitude, frequency, block=1000):
-    """Return the wall time [s] of the block kernel alone (model.run, as simulate calls it)."""
-    m = LeadScrewModel(load_preset('tr12x3'), dt=round(1e9 / rate) / 1e9)
+def bare_blocks(seconds, rate, excite):
+    """Return the wall time [s] of model.run on the profile's command rows, block by block."""
+    params = load_preset('tr12x3')
+    m = LeadScrewModel(params, dt=round(1e9 / rate) / 1e9)
     m.run([0.0])
     m.reset()
+    prof = make_profile(excite, params)
     n = int(round(seconds * rate))
-    dt = 1.0 / rate
-    w = 2 * math.pi * frequency
-    torques = [amplitude * math.sin(w * k * dt) for k in range(n)]
+    t_ns = np.arange(n, dtype=np.int64) * int(round(1e9 / rate))
+    hold = CommandHold('', 0.0, NutMap.of_model(m), params=params)
+    rows = hold.take_series(prof.topic, prof.values(t_ns / 1e9), t_ns)
+    forces = np.zeros(BLOCK_TICKS)
     t0 = time.perf_counter()
-    for k in range(0, n, block):
-        m.run(torques[k:k + block])
+    for k in range(0, n, BLOCK_TICKS):
+        block = rows[k:k + BLOCK_TICKS]
+        m.run(None, forces[:len(block)], commands=block)
     return time.perf_counter() - t0
+
+
+def timed(argv):
+    """Return the wall time [s] of one in-process ``leadscrew_sim`` call (output hidden)."""
+    out = sys.stdout
+    sys.stdout = open(os.devnull, 'w')
+    try:
+        t0 = time.perf_counter()
+        rc = cli.main(argv)
+        wall = time.perf_counter() - t0
+    finally:
+        sys.stdout.close()
+        sys.stdout = out
+    if rc != 0:
+        sys.exit(rc)
+    return wall
 
 
 def main():
-    """Run both and print the comparison."""
+    """Run the kernel, simulate and resim side by side and print the comparison."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    ap.add_argument('--seconds', type=float, default=60.0)
-    ap.add_argument('--amplitude', type=float, default=0.4, help='sine torque [N m]')
-    ap.add_argument('--profile', action='store_true')
-    ap.add_argument('--sort', default='tottime', help='cProfile sort key for --profile')
+    ap.add_argument('--seconds', type=float, default=60.0, help='simulated time [s]')
+    ap.add_argument('--excite', default='iso230', help='the identification profile')
+    ap.add_argument('--repeat', type=int, default=3, help='runs of each; the best counts')
     a = ap.parse_args()
-    rate, amp, freq = 1000.0, a.amplitude, 0.5
-    bare = bare_loop(a.seconds, rate, amp, freq)
-    blocks = bare_blocks(a.seconds, rate, amp, freq)
+    rate, s = 1000.0, a.seconds
     with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, 'bench.mcap')
-        argv = ['simulate', '--duration', str(a.seconds), '--profile', 'sine', '--amplitude',
-                str(amp), '--frequency', str(freq), '--output', out, '--quiet']
-        prof = cProfile.Profile() if a.profile else None
-        t0 = time.perf_counter()
-        if prof:
-            prof.enable()
-        rc = cli.main(argv)
-        if prof:
-            prof.disable()
-        wall = time.perf_counter() - t0
-        size = os.path.getsize(out)
-    if rc != 0:
-        sys.exit(rc)
-    print(f'default preset tr12x3, {a.seconds:g} s at {rate:g} Hz, sine {amp} N m {freq} Hz')
-    print(f'bare model loop : {bare:8.3f} s wall  {a.seconds / bare:8.1f}x real time')
-    print(f'bare block kernel: {blocks:7.3f} s wall  {a.seconds / blocks:8.1f}x real time')
-    print(f'simulate (MCAP) : {wall:8.3f} s wall  {a.seconds / wall:8.1f}x real time')
-    print(f'simulate / bare : {wall / bare:8.2f}')
-    print(f'simulate / block kernel: {wall / blocks:5.2f}')
-    print(f'file size       : {size} B = {size / a.seconds:.0f} B per simulated second')
-    if prof:
-        s = io.StringIO()
-        pstats.Stats(prof, stream=s).sort_stats(a.sort).print_stats(25)
-        print(s.getvalue())
+        def sim(duration, compression, out='sim.mcap'):
+            return timed(['simulate', '--excite', a.excite, '--duration', str(duration),
+                          '--compression', compression, '-q', '-o', os.path.join(d, out)])
+
+        def resim(name):
+            return timed(['resim', os.path.join(d, name), '-q', '-o',
+                          os.path.join(d, 'resim.mcap')])
+
+        sim(0.001, 'lz4')                                   # imports, compilation
+        best = {}
+        for _ in range(a.repeat):                           # interleaved: same conditions
+            for key, fn in (('kernel', lambda: bare_blocks(s, rate, a.excite)),
+                            ('start', lambda: sim(0.001, 'lz4', 'tiny.mcap')),
+                            ('lz4', lambda: sim(s, 'lz4', 'lz4.mcap')),
+                            ('zstd', lambda: sim(s, 'zstd', 'zstd.mcap')),
+                            ('none', lambda: sim(s, 'none', 'none.mcap')),
+                            ('resim_start', lambda: resim('tiny.mcap')),
+                            ('resim', lambda: resim('lz4.mcap'))):
+                best[key] = min(best.get(key, float('inf')), fn())
+        sizes = {c: os.path.getsize(os.path.join(d, f'{c}.mcap')) for c in ('lz4', 'zstd', 'none')}
+    k = best['kernel']
+    print(f'tr12x3 at {rate:g} Hz, --excite {a.excite} for {s:g} s, best of {a.repeat}')
+    print(f'{"run":<28} {"wall [s]":>9} {"x real time":>12} {"/ kernel":>9} {"B per sim s":>12}')
+    print(f'{"bare block kernel":<28} {k:9.4f} {s / k:12.1f} {1.0:9.2f}')
+    for c in ('lz4', 'zstd', 'none'):
+        loop = best[c] - best['start']
+        print(f'{"simulate " + (c + " (default)" if c == "lz4" else c) + " loop":<28} '
+              f'{loop:9.4f} {s / loop:12.1f} {loop / k:9.2f} {sizes[c] / s:12.0f}')
+    print(f'{"simulate lz4 with start-up":<28} {best["lz4"]:9.4f} {s / best["lz4"]:12.1f} '
+          f'{best["lz4"] / k:9.2f}')
+    loop = best['resim'] - best['resim_start']
+    print(f'{"resim (lz4 file) loop":<28} {loop:9.4f} {s / loop:12.1f} {loop / k:9.2f}')
+    print(f'start-up: simulate {best["start"]:.4f} s, resim {best["resim_start"]:.4f} s')
 
 
 if __name__ == '__main__':

@@ -365,8 +365,8 @@ def _block_states(sim, seg, cols, pieces, enc, writer, new):
     t_state = sim.t0 + (np.arange(k0, k1, dtype=np.int64) + 1) * sim.dt_ns
     analysis = {name: np.asarray(cols[col], dtype=float)
                 for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
-    states = (enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
-              + enc.rows('analysis', t_state, analysis))
+    states = (enc.encoded('sensor', t_state, sensed) + enc.encoded('truth', t_state, cols)
+              + enc.encoded('analysis', t_state, analysis))
     rows = [r for _topic, r in states]
     chans = [writer.ids[topic] for topic, _r in states]
     if writer.tf is not None:

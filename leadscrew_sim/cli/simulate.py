@@ -16,7 +16,7 @@ import numpy as np
 
 from .args import (add_compression_argument, CliError, compression_of, DEFAULT_PRESET,
                    load_params, NS, parse_sets, Progress)
-from .sources import make_drive_source, make_force_source, make_torque_source
+from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
 from .schedule import read_schedule
 from ..core import layout as L
 from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
@@ -25,6 +25,7 @@ from ..core.fields import public_name
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter, UPDATE_RECORD
+from ..io.tick_writer import Events, Stream, write_block
 
 HELP = 'run the model offline and write an MCAP file'
 
@@ -39,7 +40,8 @@ def add_arguments(p):
     p.add_argument('--params', help='ROS 2 parameter file (<node>: ros__parameters:)')
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
                    help='override a physics parameter (repeatable; YAML scalar)')
-    p.add_argument('--duration', type=float, default=1.0, help='simulated time [s]')
+    p.add_argument('--duration', type=float, help='simulated time [s] (default 1, or the '
+                   'duration of the --excite profile)')
     p.add_argument('--rate', type=float, help='update rate [Hz], dt = 1/rate (default 1000)')
     p.add_argument('--torque', type=float, help='constant motor torque [N m]')
     p.add_argument('--torque-csv', help='CSV time,torque [s, N m], zero-order hold')
@@ -61,6 +63,10 @@ def add_arguments(p):
     p.add_argument('--target', type=float, help='move target nut position [m] '
                    '(default initial + 10 mm)')
     p.add_argument('--speed', type=float, default=0.01, help='move reference speed [m/s]')
+    p.add_argument('--excite', metavar='PROFILE', help='an identification profile of '
+                   '`leadscrew_sim excite` (breakaway, sweep, reversals, iso230) as the input')
+    p.add_argument('--excite-opt', action='append', metavar='NAME=VALUE',
+                   help='an option of the --excite profile (repeatable; SI units)')
     p.add_argument('--force', type=float, help='constant external axial force [N]')
     p.add_argument('--force-csv', help='CSV time,force [s, N], zero-order hold')
     p.add_argument('--faults', metavar='FILE', help='fault schedule: CSV time,parameter,value '
@@ -78,6 +84,9 @@ def run(args):
     phys_ov, run_ov = parse_sets(args.set)
     params, label, extra = load_params(args, phys_ov)
     rate = args.rate if args.rate is not None else float(extra.get('update_rate', 1000.0))
+    profile = excite_profile(args, params)
+    if args.duration is None:
+        args.duration = profile.duration if profile is not None else 1.0
     if not (math.isfinite(rate) and 1.0 <= rate <= 1e6):
         raise CliError(f'--rate {rate} Hz must lie in [1, 1e6]')
     if not (math.isfinite(args.duration) and args.duration > 0):
@@ -85,9 +94,9 @@ def run(args):
     prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))
     dt_ns = int(round(NS / rate))
     n_steps = int(round(args.duration * NS / dt_ns))
-    drive = make_drive_source(args, params)
+    drive = make_drive_source(args, params, profile)
     if drive is None:
-        torque_fn, torque_desc = make_torque_source(args, params)
+        torque_fn, torque_desc = make_torque_source(args, params, profile)
     else:
         torque_fn, torque_desc = drive[0], drive[2]
     force_fn, force_desc = make_force_source(args)
@@ -289,8 +298,8 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
         return
     enc, ids = w.enc, w.ids
     t_state = t_cmd + dt_ns
-    states = (enc.rows('sensor', t_state, sensed) + enc.rows('truth', t_state, cols)
-              + enc.rows('analysis', t_state, _analysis(cols)))
+    states = (enc.encoded('sensor', t_state, sensed) + enc.encoded('truth', t_state, cols)
+              + enc.encoded('analysis', t_state, _analysis(cols)))
     st_rows = [r for _topic, r in states]
     st_chans = [ids[topic] for topic, _r in states]
     if w.tf is not None:
@@ -299,8 +308,8 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
     if clock:
         st_rows.append(enc.clock.rows(t_state, []))
         st_chans.append(ids['/clock'])
-    _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces,
-                  [c - ks.start for c in changes])
+    write_block(w.rec, _command_pieces(w, cmd, t_cmd, forces, [c - ks.start for c in changes]),
+                st_chans, st_rows, t_state)
 
 
 def _analysis(cols):
@@ -309,39 +318,24 @@ def _analysis(cols):
             for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
 
 
-def _write_groups(w, cmd, st_chans, st_rows, t_cmd, t_state, forces, changed):
+def _command_pieces(w, cmd, t_cmd, forces, changed):
     """
-    Write a block as groups of one log time: the states of tick i - 1, then command i.
+    Return the tick_writer pieces of a block's commands: one per tick, forces where they change.
 
-    The file order is the node's (command, force, then that tick's states, ...);
-    grouping by log time lets the writer cut chunks between ticks only.
     ``changed``: block indices of the ticks whose force changed (written after
     their command).
     """
     cmd_rows, cmd_chan = cmd
-    n = len(t_cmd)
-    m = len(st_chans)
-
-    def states(a, b):               # the states of ticks a .. b - 1 alone
-        w.rec.write_rows(st_chans, [r[a:b] for r in st_rows], [t_state[a:b]] * m)
-
-    def command(i):
-        w.write(cmd_chan, cmd_rows[i].tobytes(), int(t_cmd[i]))
-        if i in changed:
-            w.write(w.ids['external_force'], C.encode_float64(forces[i]), int(t_cmd[i]))
-
-    command(0)
-    a = 1                           # groups a .. i - 1 go in one call
-    for i in sorted(c for c in changed if c > 0) + [n]:
+    pieces, a = [], 0
+    for i in sorted(changed) + [len(t_cmd)]:
         if i > a:
-            w.rec.write_rows(st_chans + [cmd_chan],
-                             [r[a - 1:i - 1] for r in st_rows] + [cmd_rows[a:i]],
-                             [t_state[a - 1:i - 1]] * m + [t_cmd[a:i]])
-        if i < n:
-            states(i - 1, i)
-            command(i)
-            a = i + 1
-    states(n - 1, n)
+            pieces.append(Stream(a, i, cmd_chan, cmd_rows[a:i], t_cmd[a:i]))
+        if i < len(t_cmd):
+            t = int(t_cmd[i])
+            pieces.append(Events(i, [(cmd_chan, cmd_rows[i].tobytes(), t),
+                                     (w.ids['external_force'], C.encode_float64(forces[i]), t)]))
+        a = i + 1
+    return pieces
 
 
 def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line):

@@ -163,17 +163,33 @@ class MoveController:
         return self.hs * self.rt * force
 
 
-def make_torque_source(args, params):
+def excite_profile(args, params):
+    """Return the identification profile of ``--excite`` (None without it)."""
+    if getattr(args, 'excite', None) is None:
+        if getattr(args, 'excite_opt', None):
+            raise CliError('--excite-opt needs --excite PROFILE')
+        return None
+    from ..core.excitation import make_profile
+    from .excite import parse_options
+    return make_profile(args.excite, params, **parse_options(args.excite_opt))
+
+
+def make_torque_source(args, params, profile=None):
     """
     Return ``fn(k, t, x, v) -> torque`` and a description of the input.
 
     x is the nut position [m], v the motor velocity as nut velocity [m/s];
     ``fn.needs_state`` marks a closed loop (stepped tick by tick).
+    ``profile``: the ``--excite`` profile, a torque input here.
     """
     chosen = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv),
                              ('--profile', args.profile)) if v is not None]
+    if profile is not None:
+        chosen.append('--excite')
     if len(chosen) > 1:
         raise CliError(f'give only one torque input, not {" and ".join(chosen)}')
+    if profile is not None:
+        return profile.torque_source(), profile.describe()
     if args.torque_csv is not None:
         held = Held(*read_csv_series(args.torque_csv, 'torque'))
         return TorqueSource(held, held.block), f'torque_csv={args.torque_csv}'
@@ -237,6 +253,22 @@ def _check_force(what, value):
     reason = CommandHold().external_force(value)
     if reason is not None:
         raise CliError(f'{what}: {reason}')
+
+
+class ProfileSeries:
+    """An excitation profile as a series: ``series(t)`` and ``series.block(ts)`` [s]."""
+
+    def __init__(self, profile):
+        """Keep the profile."""
+        self.profile = profile
+
+    def __call__(self, t):
+        """Return the command value at time t [s]."""
+        return self.profile(t)
+
+    def block(self, ts):
+        """Return the command values at the times ``ts`` [s]."""
+        return self.profile.values(ts)
 
 
 class DriveSource:
@@ -307,9 +339,12 @@ class Trapezoid:
         return self.x0 + self.sign * s, self.sign * w
 
 
-def make_drive_source(args, params):
+def make_drive_source(args, params, profile=None):
     """
     Return the drive input of simulate as (fn, topic, description), or None for a torque input.
+
+    ``profile``: the ``--excite`` profile (a drive input when it commands
+    velocity or position).
 
     ``fn(t)`` returns (nut position [m] or NaN, nut velocity [m/s] or NaN) at t [s];
     ``topic`` is the command topic it is recorded on: ``velocity_command``,
@@ -321,6 +356,8 @@ def make_drive_source(args, params):
               if v is not None]
     if args.profile == 'trapezoid':
         chosen.append('--profile trapezoid')
+    if profile is not None and profile.kind != 'torque':
+        chosen.append('--excite')
     if not chosen:
         return None
     torque = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv))
@@ -329,6 +366,11 @@ def make_drive_source(args, params):
         torque.append(f'--profile {args.profile}')
     if len(chosen) + len(torque) > 1:
         raise CliError(f'give only one input, not {" and ".join(chosen + torque)}')
+    if profile is not None:
+        held = ProfileSeries(profile)
+        source = DriveSource(held, None) if profile.kind == 'position' else DriveSource(
+            None, held)
+        return source, profile.topic, profile.describe()
     if args.velocity is not None:
         c = float(args.velocity)
         check_finite('--velocity', c)

@@ -35,6 +35,8 @@ import lz4.frame
 import numpy as np
 import zstandard
 
+from .record_fill import EncodedRows, fill
+
 MAGIC = b'\x89MCAP0\r\n'
 
 #: The chunk compressions written (MCAP's names): zstd (small files), lz4 (a third larger,
@@ -228,11 +230,11 @@ class McapWriter:
         Append ``n`` rows of messages; row ``k`` holds one message per channel, in order.
 
         ``payloads``: one uint8 array of shape (n, L_j) per channel (fixed-length
-        messages); ``log_times``: one int array (n,) per channel, also used as
-        publish time; ``sequences``: one int array (n,) per channel. Rows are
-        never split across chunks, and a chunk starts only at a row whose
-        messages are all later than everything before it (a tick boundary when
-        a row holds one log time).
+        messages), or :class:`~.record_fill.EncodedRows` (encoded as written);
+        ``log_times``: one int array (n,) per channel, also used as publish time;
+        ``sequences``: one int array (n,) per channel. Rows are never split across
+        chunks, and a chunk starts only at a row whose messages are all later
+        than everything before it (a tick boundary when a row holds one log time).
         """
         m = len(channel_ids)
         if not (m and len(payloads) == m and len(log_times) == m and len(sequences) == m):
@@ -243,10 +245,14 @@ class McapWriter:
         n = len(payloads[0])
         if n == 0:
             return
+        widths = []
         for p in payloads:
-            if p.ndim != 2 or len(p) != n:
-                raise ValueError('payloads must be 2-D arrays with one row per message')
-        head, starts, at = self._layout(channel_ids, [p.shape[1] for p in payloads])
+            encoded = isinstance(p, EncodedRows)
+            if len(p) != n or not (encoded or p.ndim == 2):
+                raise ValueError('payloads must be 2-D arrays or EncodedRows with one row per '
+                                 'message')
+            widths.append(p.width if encoded else p.shape[1])
+        head, starts, at = self._layout(channel_ids, widths)
         times = np.stack([np.asarray(t[:n], dtype=np.uint64) for t in log_times])
         row_min, row_max = times.min(axis=0), times.max(axis=0)
         cut_ok = np.empty(n, dtype=bool)        # a chunk may start at row j
@@ -267,14 +273,17 @@ class McapWriter:
             block = np.empty((r, at), dtype=np.uint8)
             base = self._nbuf
             for j, cid in enumerate(channel_ids):
-                s, w = starts[j], payloads[j].shape[1]
+                s, w = starts[j], widths[j]
                 lt = times[j, k:k + r].astype('<u8').view(np.uint8).reshape(r, 8)
                 block[:, s:s + 11] = head[j]
                 block[:, s + 11:s + 15] = (np.asarray(sequences[j][k:k + r]) & 0xFFFFFFFF) \
                     .astype('<u4').view(np.uint8).reshape(r, 4)
                 block[:, s + 15:s + 23] = lt
                 block[:, s + 23:s + 31] = lt
-                block[:, s + 31:s + 31 + w] = payloads[j][k:k + r]
+                if isinstance(payloads[j], EncodedRows):
+                    fill(block, s + 31, payloads[j], k, r)
+                else:
+                    block[:, s + 31:s + 31 + w] = payloads[j][k:k + r]
                 pairs = np.empty((r, 2), dtype=np.uint64)
                 pairs[:, 0] = times[j, k:k + r]
                 pairs[:, 1] = base + s + at * np.arange(r, dtype=np.uint64)

@@ -20,6 +20,7 @@ sensor ones with the prefix ``sensor_`` where a true value has the same name).
 """
 from .cdr import (CdrReader, clock_template, CdrWriter, float64_template, joint_state_template,
                   Template, wrench_template)
+from .record_fill import EncodedRows
 
 #: What the sensors report in one tick: rad, m, rad/s, m/s, N m, N.
 SENSOR_VALUES = ('screw_angle', 'nut_position', 'screw_velocity', 'nut_velocity',
@@ -189,4 +190,22 @@ class StateEncoder:
         """
         return [(topic, template.rows(stamps_ns if stamped else None,
                                       [columns[name] for name in names]))
+                for topic, template, stamped, _i, names in self._plan[group]]
+
+    def encoded(self, group, stamps_ns, columns):
+        """
+        Return [(topic, EncodedRows)]: :meth:`rows`, encoded only when written.
+
+        Parameters
+        ----------
+        group : str
+            ``'sensor'``, ``'truth'`` or ``'analysis'``.
+        stamps_ns : numpy.ndarray of int64
+            Stamp of each row [ns].
+        columns : mapping of str to numpy.ndarray
+            One array per value name of the group.
+
+        """
+        return [(topic, EncodedRows.of_template(template, stamps_ns,
+                                                [columns[name] for name in names]))
                 for topic, template, stamped, _i, names in self._plan[group]]

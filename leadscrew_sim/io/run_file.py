@@ -143,8 +143,9 @@ class RunWriter:
                 stamp_ns if log_time_ns is None else log_time_ns)
 
     def tf_rows(self, stamps_ns, screw_angles, nut_positions):
-        """Return the /tf messages of many ticks as uint8 rows (``TfEncoder.rows``)."""
-        return self.tf.rows(stamps_ns, self.tree.moving_columns(screw_angles, nut_positions))
+        """Return the /tf messages of many ticks, encoded as written (``TfEncoder.rows``)."""
+        return TF.tf_encoded(self.tf, stamps_ns,
+                             self.tree.moving_columns(screw_angles, nut_positions))
 
     def close(self):
         """Finish the file and return its size [B]; raise RunFileError on an I/O error."""

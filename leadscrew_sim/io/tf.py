@@ -24,6 +24,7 @@ import numpy as np
 
 from .cdr import CdrReader, CdrWriter, DecodeError, NS, split_stamp
 from .msgdefs import EMBEDDED, ros2msg_definition, share_directory
+from .record_fill import EncodedRows
 
 TFMESSAGE_TYPE = 'tf2_msgs/msg/TFMessage'
 STRING_TYPE = 'std_msgs/msg/String'
@@ -238,6 +239,26 @@ class TfEncoder:
             out[:, v_off:v_off + 8 * VALUES_PER_FRAME] = values.view(np.uint8).reshape(
                 n, 8 * VALUES_PER_FRAME)
         return out
+
+
+def tf_encoded(encoder, stamps_ns, columns):
+    """
+    Return the /tf messages of n ticks as EncodedRows (the bytes of ``encoder.rows``).
+
+    Parameters
+    ----------
+    encoder : TfEncoder
+        The layout.
+    stamps_ns : numpy.ndarray of int64
+        One stamp per tick [ns], on every transform.
+    columns : list of numpy.ndarray
+        One float array (n,) per value, in the order of ``encoder.rows``.
+
+    """
+    if len(columns) != encoder.n_values:
+        raise ValueError(f'{encoder.n_values} columns needed, not {len(columns)}')
+    offsets = [v + 8 * j for v in encoder.offsets for j in range(VALUES_PER_FRAME)]
+    return EncodedRows(encoder.tmpl, encoder.stamp_offsets, offsets, stamps_ns, columns)
 
 
 def encode_string(text):
