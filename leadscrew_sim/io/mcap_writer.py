@@ -245,15 +245,18 @@ class McapWriter:
         n = len(payloads[0])
         if n == 0:
             return
-        widths = []
+        shapes = []
         for p in payloads:
             encoded = isinstance(p, EncodedRows)
             if len(p) != n or not (encoded or p.ndim == 2):
                 raise ValueError('payloads must be 2-D arrays or EncodedRows with one row per '
                                  'message')
-            widths.append(p.width if encoded else p.shape[1])
-        head, starts, at = self._layout(channel_ids, widths)
+            shapes.append(p.template_bytes if encoded else p.shape[1])
+        row, starts, at = self._layout(channel_ids, shapes)
         times = np.stack([np.asarray(t[:n], dtype=np.uint64) for t in log_times])
+        lt_bytes = times.astype('<u8').view(np.uint8).reshape(m, n, 8)
+        seq_bytes = (np.stack([np.asarray(q[:n]) for q in sequences]) & 0xFFFFFFFF).astype(
+            '<u4').view(np.uint8).reshape(m, n, 4)
         row_min, row_max = times.min(axis=0), times.max(axis=0)
         cut_ok = np.empty(n, dtype=bool)        # a chunk may start at row j
         cut_ok[0] = self._c_end is None or int(row_min[0]) > self._c_end
@@ -271,19 +274,18 @@ class McapWriter:
             nxt = np.searchsorted(cuts, k + room)       # the rows up to a cut past the room
             r = (int(cuts[nxt]) if nxt < len(cuts) else n) - k
             block = np.empty((r, at), dtype=np.uint8)
+            block[:] = row                  # headers and templates; then what varies
             base = self._nbuf
             for j, cid in enumerate(channel_ids):
-                s, w = starts[j], widths[j]
-                lt = times[j, k:k + r].astype('<u8').view(np.uint8).reshape(r, 8)
-                block[:, s:s + 11] = head[j]
-                block[:, s + 11:s + 15] = (np.asarray(sequences[j][k:k + r]) & 0xFFFFFFFF) \
-                    .astype('<u4').view(np.uint8).reshape(r, 4)
-                block[:, s + 15:s + 23] = lt
-                block[:, s + 23:s + 31] = lt
-                if isinstance(payloads[j], EncodedRows):
-                    fill(block, s + 31, payloads[j], k, r)
+                s = starts[j]
+                block[:, s + 11:s + 15] = seq_bytes[j, k:k + r]
+                block[:, s + 15:s + 23] = lt_bytes[j, k:k + r]
+                block[:, s + 23:s + 31] = lt_bytes[j, k:k + r]
+                p = payloads[j]
+                if isinstance(p, EncodedRows):
+                    fill(block, s + 31, p, k, r, template=False)
                 else:
-                    block[:, s + 31:s + 31 + w] = payloads[j][k:k + r]
+                    block[:, s + 31:s + 31 + p.shape[1]] = p[k:k + r]
                 pairs = np.empty((r, 2), dtype=np.uint64)
                 pairs[:, 0] = times[j, k:k + r]
                 pairs[:, 1] = base + s + at * np.arange(r, dtype=np.uint64)
@@ -301,18 +303,24 @@ class McapWriter:
             if self._nbuf >= self._chunk_size:
                 self._close_due = True
 
-    def _layout(self, channel_ids, widths):
-        """Return (the 11 fixed header bytes per channel, start of each message, row length)."""
-        key = (tuple(channel_ids), tuple(widths))
+    def _layout(self, channel_ids, shapes):
+        """
+        Return (the bytes of a row with zero sequences and times, message starts, row length).
+
+        ``shapes``: per channel the payload length (copied per row) or the
+        template bytes of EncodedRows (part of the row).
+        """
+        key = (tuple(channel_ids), tuple(shapes))
         layout = self._layouts.get(key)
         if layout is None:
-            heads, starts, at = [], [], 0
-            for cid, w in zip(channel_ids, widths):
-                heads.append(np.frombuffer(_PREFIX.pack(OP_MESSAGE, 22 + w)
-                                           + struct.pack('<H', cid), dtype=np.uint8))
-                starts.append(at)
-                at += MESSAGE_OVERHEAD + w
-            layout = self._layouts[key] = (heads, starts, at)
+            row, starts = bytearray(), []
+            for cid, shape in zip(channel_ids, shapes):
+                width = shape if isinstance(shape, int) else len(shape)
+                starts.append(len(row))
+                row += _MESSAGE.pack(OP_MESSAGE, 22 + width, cid, 0, 0, 0)
+                row += bytes(width) if isinstance(shape, int) else shape
+            layout = self._layouts[key] = (np.frombuffer(bytes(row), dtype=np.uint8), starts,
+                                           len(row))
         return layout
 
     def close_chunk(self):

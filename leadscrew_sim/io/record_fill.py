@@ -33,11 +33,12 @@ class EncodedRows:
 
     """
 
-    __slots__ = ('tmpl', 'stamp_offsets', 'runs', 'stamps', 'values', 'n')
+    __slots__ = ('template_bytes', 'tmpl', 'stamp_offsets', 'runs', 'stamps', 'values', 'n')
 
     def __init__(self, template, stamp_offsets, offsets, stamps_ns, columns):
         """Keep the layout; stack the stamps' and the doubles' bytes."""
-        self.tmpl = np.frombuffer(bytes(template), dtype=np.uint8)
+        self.template_bytes = bytes(template)
+        self.tmpl = np.frombuffer(self.template_bytes, dtype=np.uint8)
         self.stamp_offsets = tuple(int(o) for o in stamp_offsets)
         self.runs = _runs(offsets)
         n = len(columns[0]) if columns else len(stamps_ns)
@@ -84,7 +85,8 @@ class EncodedRows:
         if not isinstance(index, slice):
             raise TypeError('EncodedRows take slices only')
         out = EncodedRows.__new__(EncodedRows)
-        out.tmpl, out.stamp_offsets, out.runs = self.tmpl, self.stamp_offsets, self.runs
+        out.template_bytes, out.tmpl = self.template_bytes, self.tmpl
+        out.stamp_offsets, out.runs = self.stamp_offsets, self.runs
         out.stamps = None if self.stamps is None else self.stamps[index]
         out.values = self.values[index]
         out.n = len(out.values)
@@ -115,7 +117,7 @@ def _runs(offsets):
     return tuple(runs)
 
 
-def fill(block, start, rows, k, r):
+def fill(block, start, rows, k, r, template=True):
     """
     Write messages ``k .. k + r - 1`` of ``rows`` into ``block[:, start:]``, one per row.
 
@@ -129,9 +131,12 @@ def fill(block, start, rows, k, r):
         The messages.
     k, r : int
         The first message and the number of messages.
+    template : bool
+        Also write the template's bytes (False: the block holds them already).
 
     """
-    block[:, start:start + rows.width] = rows.tmpl
+    if template:
+        block[:, start:start + rows.width] = rows.tmpl
     for off in rows.stamp_offsets:
         block[:, start + off:start + off + 8] = rows.stamps[k:k + r]
     values = rows.values[k:k + r]
