@@ -9,8 +9,7 @@ else goes event by event, step by step, through CommandHold itself.
 import numpy as np
 
 from .args import CliError, NS
-from ..core.commands import (CommandHold, DROPPED, first_step, JOINT_COMMAND_MODES, NutMap,
-                             REJECTED)
+from ..core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
 from ..core.params import ParameterError, ScrewParams
 from ..io import cdr as C
 from ..io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD, run_setting, UPDATE_RECORD
@@ -60,7 +59,8 @@ class CommandPass:
         """Return (segments, commands, forces) as :meth:`Resim.inputs` describes them."""
         sim = self.sim
         events, n = sim.events, sim.n_steps
-        ticks = [max(0, first_step(e[0], sim.t0, sim.dt_ns)) for e in events]
+        times = np.array([e[0] for e in events], dtype=np.int64)
+        ticks = np.maximum(0, -((sim.t0 - times) // sim.dt_ns))     # core.commands.first_step
         segments = [Segment(0, [])]
         sim.rejected = 0
         for e0, e1, k, run in _groups(events, ticks, n):
@@ -170,31 +170,38 @@ class CommandPass:
 
 def _groups(events, ticks, n):
     """
-    Yield the event groups (e0, e1, k, run) of the steps before ``n``.
+    Return the event groups (e0, e1, k, run) of the steps before ``n``.
 
     ``run`` > 0: events ``e0 .. e1 - 1`` are one Float64 drive command of one
     kind per step, on the consecutive steps ``k .. k + run - 1``; ``run`` = 0:
-    the events of step ``k`` alone.
+    the events of step ``k`` alone. ``ticks``: the step of each event
+    (non-decreasing).
     """
-    ne = len(events)
-    e = 0
-    while e < ne and ticks[e] < n:
-        k = ticks[e]
-        f = e + 1
-        while f < ne and ticks[f] == k:
-            f += 1
-        kind = events[e][1]
-        if f == e + 1 and kind in FLOAT_COMMANDS:
-            g = f                   # extend: one event of the same kind per next step
-            while (g < ne and ticks[g] == ticks[g - 1] + 1 and ticks[g] < n
-                   and events[g][1] == kind and (g + 1 >= ne or ticks[g + 1] != ticks[g])):
-                g += 1
-            if g - e > 1:
-                yield e, g, k, g - e
-                e = g
-                continue
-        yield e, f, k, 0
-        e = f
+    ne = int(np.searchsorted(ticks, n, side='left'))
+    ticks = np.asarray(ticks[:ne], dtype=np.int64)
+    if not ne:
+        return []
+    kinds = np.array([FLOAT_COMMANDS.index(e[1]) if e[1] in FLOAT_COMMANDS else -1
+                      for e in events[:ne]])
+    same = ticks[1:] == ticks[:-1]
+    alone = np.ones(ne, dtype=bool)             # the only event of its step
+    alone[1:] &= ~same
+    alone[:-1] &= ~same
+    simple = alone & (kinds >= 0)
+    linked = (simple[1:] & simple[:-1] & (kinds[1:] == kinds[:-1])
+              & (ticks[1:] == ticks[:-1] + 1))
+    bounds = np.concatenate([[0], np.flatnonzero(~linked) + 1, [ne]]).tolist()
+    ticks_list = ticks.tolist()
+    groups = []
+    for e, f in zip(bounds[:-1], bounds[1:]):
+        if f - e > 1:                           # a run of linked simple commands
+            groups.append((e, f, ticks_list[e], f - e))
+        elif groups and groups[-1][3] == 0 and groups[-1][2] == ticks_list[e]:
+            g = groups[-1]                      # another event of the same step
+            groups[-1] = (g[0], f, g[2], 0)
+        else:
+            groups.append((e, f, ticks_list[e], 0))
+    return groups
 
 
 def _float64s(datas):

@@ -291,6 +291,30 @@ def _message_indexes(fh, index):
     return out
 
 
+def _gather(buf, starts, width):
+    """
+    Return the rows ``buf[s:s + width]`` of the increasing ``starts``: uint8 (n, width).
+
+    Records written as rows lie at one stride; each run of one stride is one
+    strided view, and the views are copied out together.
+    """
+    n = len(starts)
+    step = np.diff(starts)
+    changes = np.flatnonzero(step[1:] != step[:-1]) + 1     # where a new stride begins
+    parts, i = [], 0
+    while i < n:
+        if i == n - 1:
+            parts.append(buf[int(starts[i]):int(starts[i]) + width][None, :])
+            break
+        at = np.searchsorted(changes, i, side='right')
+        j = int(changes[at]) if at < len(changes) else n - 1   # the run's last start
+        parts.append(np.lib.stride_tricks.as_strided(
+            buf[int(starts[i]):], shape=(j - i + 1, width), strides=(int(step[i]), 1),
+            writeable=False))
+        i = j + 1
+    return np.concatenate(parts)
+
+
 def _topic_arrays(fh, summary, topics):
     """Read ``topics`` through the message indexes (see Recording.topic_arrays)."""
     indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
@@ -319,7 +343,7 @@ def _topic_arrays(fh, summary, topics):
             lengths = buf[off[:, None] + np.arange(1, 9)].copy().view('<u8').ravel()
             size = lengths - 22
             if len(size) and (size == size[0]).all():
-                data = buf[(off + 31)[:, None] + np.arange(int(size[0]))]
+                data = _gather(buf, off + 31, int(size[0]))
             else:
                 data = [buf[o + 31:o + 9 + int(n)].tobytes() for o, n in zip(off, lengths)]
             parts[cid].append((pairs[cid][:, 0].astype(np.int64), (number << 40) + off, data,
