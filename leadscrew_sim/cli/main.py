@@ -9,7 +9,7 @@ import os
 import sys
 
 from . import excite
-from . import info, play, plot, resim, simulate
+from . import identify, info, play, plot, resim, simulate
 from .args import CliError, Parser, PROG, UsageError
 from ..core.params import ParameterError
 from ..io.mcap_reader import RecordingError
@@ -17,7 +17,7 @@ from ..io.run_file import RunFileError
 
 #: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
 VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
-         ('play', play), ('plot', plot), ('excite', excite))
+         ('play', play), ('plot', plot), ('excite', excite), ('identify', identify))
 
 
 def build_parser():

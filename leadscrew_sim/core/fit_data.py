@@ -5,7 +5,8 @@ Measured signals (:class:`Measurements`): what the axis's sensors report on
 the step grid, with the noise level that weights each and a free offset for
 each position signal (the homing's zero).
 
-Verdicts (:func:`judge`): identified, or not identifiable from the data and why.
+The covariance of a fit (:func:`sandwich`) and the verdicts (:func:`judge`):
+identified, or not identifiable from the data and why.
 
 A parameter is identified when its 95 % interval is narrower than
 +-:data:`REL_MAX` of its size (its value, or its typical size when the value
@@ -71,6 +72,56 @@ def scaled_inverse(a):
     inv[:, zero] = 0.0
     inv[zero, zero] = np.inf
     return inv
+
+
+def _bartlett_bandwidth(scores):
+    """Return Andrews' (1991) AR(1) plug-in bandwidth of Bartlett weights for ``scores``."""
+    n = len(scores)
+    num = den = 0.0
+    for g in scores.T:
+        a, b = g[:-1], g[1:]
+        ss = float(a @ a)
+        if ss == 0.0:
+            continue
+        rho = min(0.97, max(-0.97, float(a @ b) / ss))
+        var = float(np.mean((b - rho * a) ** 2))
+        num += 4.0 * rho ** 2 * var ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
+        den += var ** 2 / (1.0 - rho) ** 4
+    if den == 0.0:
+        return 0
+    return int(min(n // 4, math.ceil(1.1447 * (num / den * n) ** (1.0 / 3.0))))
+
+
+def sandwich(jac, r, shape):
+    """
+    Return (covariance, bandwidth): the HAC sandwich covariance of a least-squares fit.
+
+    Parameters
+    ----------
+    jac : numpy.ndarray
+        Jacobian (n_signals * n_time, p) of the flattened residuals.
+    r : numpy.ndarray
+        The flattened residuals at the solution.
+    shape : tuple
+        (n_signals, n_time) of the residual matrix.
+
+    """
+    p = jac.shape[1]
+    scores = (jac.reshape(shape + (p,)) * r.reshape(shape)[:, :, None]).sum(axis=0)
+    bread = scaled_inverse(jac.T @ jac)
+    lag = _bartlett_bandwidth(scores)
+    meat = scores.T @ scores
+    for ell in range(1, lag + 1):
+        gam = scores[ell:].T @ scores[:-ell]
+        meat += (1.0 - ell / (lag + 1.0)) * (gam + gam.T)
+    n_used = int(np.count_nonzero(r)) or 1
+    p_eff = min(p, n_used - 1)
+    meat *= n_used / max(1, n_used - p_eff)      # small-sample factor, as s^2 divides by n - p
+    zero = ~np.isfinite(np.diag(bread))
+    b = np.where(np.isfinite(bread), bread, 0.0)
+    cov = b @ meat @ b
+    cov[zero, zero] = np.inf
+    return cov, lag
 
 
 def t_quantile(level, dof):
@@ -177,6 +228,39 @@ SIGNALS = (('screw_angle', 'sensor_screw_angle', 'rad'),
 IDEAL_SENSORS = dict(encoder_counts=0, encoder_noise=0.0, encoder_bias=0.0,
                      scale_resolution=0.0, scale_noise=0.0, scale_bias=0.0)
 
+#: A bias that changes no reading (|x| + 1e-300 == |x| for every reading but an exact 0).
+NULL_BIAS = 1e-300
+
+
+def noiseless_sensors(params):
+    """
+    Return the sensor parameters that re-simulate a recording's sensors without their noise.
+
+    A sensor the recording had as ideal stays ideal (it reads the true position
+    and rate). Any other keeps its bias but loses its counts (resolution) and
+    noise; its bias is at least :data:`NULL_BIAS`, which keeps it a real sensor
+    in the kernel: its velocity is the difference quotient of its readings
+    over the drive period, as in the recording, so a drive loop closed over
+    it has the recorded dynamics (an ideal sensor's true rate has none of the
+    quotient's half-period delay).
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The recording's sensor parameters.
+
+    """
+    out = dict(IDEAL_SENSORS)
+    if params.encoder_counts or params.encoder_noise or params.encoder_bias:
+        out['encoder_bias'] = params.encoder_bias or NULL_BIAS
+    if params.scale_resolution or params.scale_noise or params.scale_bias:
+        out['scale_bias'] = params.scale_bias or NULL_BIAS
+    return out
+
+
+#: Least residual rms / noise level of a signal that :meth:`Measurements.reweight` raises.
+REWEIGHT = 2.0
+
 #: Signals with a free offset: the zero of an encoder and of a scale is the homing's.
 OFFSET_SIGNALS = ('screw_angle', 'nut_position')
 
@@ -281,3 +365,34 @@ class Measurements:
     def offsets_removed(self):
         """Return the number of offsets estimated (one per offset signal)."""
         return sum(self.offset)
+
+    def rms(self, columns):
+        """Return the RMS of each signal's differences from a re-simulation [unit]."""
+        d = self.differences(columns)
+        n = np.maximum(1, self.mask.sum(axis=1))
+        return np.sqrt((d ** 2).sum(axis=1) / n)
+
+    def reweight(self, columns, factor=REWEIGHT):
+        """
+        Raise the noise level of each signal the model explains only to a residual RMS above it.
+
+        A signal whose residual RMS at the fit exceeds ``factor`` times its
+        noise level carries a disturbance the re-simulation does not model
+        (a drive loop's response to its sensor noise moves the motor off the
+        noiseless path): its weight follows its RMS, so that it does not
+        outweigh the signals the model explains. Returns the names raised.
+
+        Parameters
+        ----------
+        columns : dict
+            The re-simulation at the fit.
+        factor : float
+            Least rms / sigma that raises a signal's level.
+
+        """
+        raised = []
+        for name, r in zip(self.names, self.rms(columns)):
+            if r > factor * self.sigma[name]:
+                self.sigma[name] = float(r)
+                raised.append(name)
+        return raised

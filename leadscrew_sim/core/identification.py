@@ -27,12 +27,14 @@ import numpy as np
 
 from .params import ScrewParams
 from . import fit_data as V
-from .fit_data import (IDEAL_SENSORS, Measurements, noise_estimate, OFFSET_SIGNALS,
-                       scaled_inverse, sensor_sigma, SIGNALS)
+from .fit_data import (IDEAL_SENSORS, Measurements, noise_estimate, noiseless_sensors,
+                       NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse, sensor_sigma,
+                       SIGNALS)
 
 __all__ = ['Coordinate', 'DEFAULT_FIT', 'FitResult', 'FITTABLE', 'IDEAL_SENSORS', 'LEVEL',
-           'Measurements', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates', 'fit',
-           'noise_estimate', 'sandwich', 'scaled_inverse', 'sensor_sigma', 'typical_size']
+           'Measurements', 'NULL_BIAS', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates',
+           'fit', 'noise_estimate', 'noiseless_sensors', 'sandwich', 'scaled_inverse',
+           'sensor_sigma', 'typical_size']
 
 #: Parameters ``identify`` fits when not told otherwise.
 DEFAULT_FIT = ('mu_s', 'mu_k', 'stribeck_velocity', 'mu_viscous', 'backlash',
@@ -229,65 +231,58 @@ class _Counted:
         return r.ravel()
 
 
-def _jacobian(fun, z, r0, step):
-    """Return the forward-difference Jacobian of ``fun`` at ``z`` (relative step)."""
+#: Relative steps of the Jacobian of the intervals, and the factor by which the growing
+#: horizons' stages widen the optimiser's steps.
+JAC_STEPS, COARSE = (1e-5, 1e-3), 10.0
+
+
+class _Anchored:
+    """
+    The residuals of a horizon stage with a weak pull toward the stage's start.
+
+    A short horizon may not see a parameter at all (the backlash before the
+    first reversal, the Stribeck velocity before the first slow plateau); the
+    extra residuals (z - z_start) / :data:`ANCHOR` keep such a parameter where
+    it was instead of letting it wander to a bound. Where the data see a
+    parameter their weight (residuals in noise units over many samples)
+    overrides the pull; the whole run's stage has none.
+    """
+
+    def __init__(self, fun, z0):
+        self.fun, self.z0 = fun, np.array(z0, dtype=float)
+
+    def __call__(self, z):
+        return np.concatenate([self.fun(z), (z - self.z0) / ANCHOR])
+
+
+#: Width of the pull of a horizon stage toward its start, in z units (about 100 %).
+ANCHOR = 1.0
+
+
+def _jacobian(fun, z, r0, steps):
+    """
+    Return the difference Jacobian of ``fun`` at ``z``: per column the flattest of four.
+
+    A re-simulation is piecewise smooth in its parameters: a breakaway, a
+    flank change or a stick happens in a whole step, so a parameter change
+    that moves it by one step makes the signals jump; and a parameter the
+    signals hardly depend on changes them only by the solver's round-off.
+    The smooth part is the derivative; a difference across a jump overstates
+    it, and so does round-off divided by a small step (both understate the
+    interval). Of the forward and backward differences of a small and a
+    larger step, the one with the smallest norm crossed neither.
+    """
     jac = np.empty((r0.size, len(z)))
     for i in range(len(z)):
-        h = step * max(1.0, abs(z[i]))
-        zi = np.array(z, dtype=float)
-        zi[i] += h
-        jac[:, i] = (fun(zi) - r0) / h
+        cols = []
+        for step in steps:
+            h = step * max(1.0, abs(z[i]))
+            for sign in (1.0, -1.0):
+                zi = np.array(z, dtype=float)
+                zi[i] += sign * h
+                cols.append((fun(zi) - r0) / (sign * h))
+        jac[:, i] = min(cols, key=np.linalg.norm)
     return jac
-
-
-def _bartlett_bandwidth(scores):
-    """Return Andrews' (1991) AR(1) plug-in bandwidth of Bartlett weights for ``scores``."""
-    n = len(scores)
-    num = den = 0.0
-    for g in scores.T:
-        a, b = g[:-1], g[1:]
-        ss = float(a @ a)
-        if ss == 0.0:
-            continue
-        rho = min(0.97, max(-0.97, float(a @ b) / ss))
-        var = float(np.mean((b - rho * a) ** 2))
-        num += 4.0 * rho ** 2 * var ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
-        den += var ** 2 / (1.0 - rho) ** 4
-    if den == 0.0:
-        return 0
-    return int(min(n // 4, math.ceil(1.1447 * (num / den * n) ** (1.0 / 3.0))))
-
-
-def sandwich(jac, r, shape):
-    """
-    Return (covariance, bandwidth): the HAC sandwich covariance of a least-squares fit.
-
-    Parameters
-    ----------
-    jac : numpy.ndarray
-        Jacobian (n_signals * n_time, p) of the flattened residuals.
-    r : numpy.ndarray
-        The flattened residuals at the solution.
-    shape : tuple
-        (n_signals, n_time) of the residual matrix.
-
-    """
-    p = jac.shape[1]
-    scores = (jac.reshape(shape + (p,)) * r.reshape(shape)[:, :, None]).sum(axis=0)
-    bread = scaled_inverse(jac.T @ jac)
-    lag = _bartlett_bandwidth(scores)
-    meat = scores.T @ scores
-    for ell in range(1, lag + 1):
-        gam = scores[ell:].T @ scores[:-ell]
-        meat += (1.0 - ell / (lag + 1.0)) * (gam + gam.T)
-    n_used = int(np.count_nonzero(r)) or 1
-    p_eff = min(p, n_used - 1)
-    meat *= n_used / max(1, n_used - p_eff)      # small-sample factor, as s^2 divides by n - p
-    zero = ~np.isfinite(np.diag(bread))
-    b = np.where(np.isfinite(bread), bread, 0.0)
-    cov = b @ meat @ b
-    cov[zero, zero] = np.inf
-    return cov, lag
 
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
@@ -311,11 +306,15 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         Values handed to ``residuals`` with every call besides the fitted ones.
     horizons : list of int, optional
         Growing horizons [steps] fitted one after the other, each from the last
-        one's solution, before the whole run (None): the error of a simulation
-        grows with time, so a long run seen at once from a distant start has
-        many local minima; a short one has few.
+        one's solution, before the whole run: the error of a simulation grows
+        with time, so a long run seen at once from a distant start has many
+        local minima; a short one has few. The first stage also starts from
+        each log-scaled parameter divided and multiplied by :data:`SPREAD`
+        and keeps the best.
     diff_step : float
-        Relative step of the finite-difference Jacobian in z coordinates.
+        Relative step of the optimiser's finite-difference Jacobian in z
+        coordinates (:data:`COARSE` times larger in the horizon stages: a wide
+        step averages over the jumps of a piecewise smooth re-simulation).
     max_nfev : int, optional
         Most re-simulations per fit (default 50 per parameter).
     hints : dict, optional
@@ -347,17 +346,27 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
                        for c in active])
         hi = np.array([c.to_z(c.upper) for c in active])
         z = np.clip(z0, lo, hi)
-        for h in (horizons or [None]) if _round == 0 else [None]:
+        stages = (horizons or []) + [None] if _round == 0 else [None]
+        for stage, h in enumerate(stages):
             fun.horizon = h
-            res = least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
-                                diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                                max_nfev=max_nfev or 50 * len(active))
-            z = res.x
+            starts = [z] + (_spread(z, active, lo, hi) if _round == 0 and h is not None else [])
+            best = None
+            step = diff_step * (COARSE if h is not None else 1.0)
+            target = fun if h is None else _Anchored(fun, z)
+            for zs in starts:
+                res = least_squares(target, zs, bounds=(lo, hi), method='trf', x_scale=1.0,
+                                    diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                                    max_nfev=max_nfev or 50 * len(active))
+                if best is None or res.cost < best.cost:
+                    best = res
+            res, z = best, best.x
+            if h is None:
+                res, z = _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, len(active))
         fun.horizon = None
         r = fun(z)
         nfev += fun.nfev
         message = res.message
-        jac = _jacobian(fun, z, r, diff_step)
+        jac = _jacobian(fun, z, r, JAC_STEPS)
         nfev_after = fun.nfev
         cov, lag = sandwich(jac, r, fun.shape)
         verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),
@@ -371,6 +380,54 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         active = [dataclasses.replace(c, initial=c.to_value(zi))
                   for c, zi, v in zip(active, z, verdicts) if v.identified]
     return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints)
+
+
+#: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
+RESTARTS, RESTART_GAIN = 3, 1e-4
+
+
+def _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
+    """
+    Restart the optimiser where it stopped while that still lowers the cost.
+
+    On a piecewise smooth cost the trust region collapses at a jump and the
+    optimiser stops on ``xtol`` short of the minimum; a restart begins with a
+    fresh trust region and a Jacobian of another step (alternately 3 and 1/3
+    times ``diff_step``), which steps over the jump.
+    """
+    from scipy.optimize import least_squares
+    for k in range(RESTARTS):
+        step = diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
+        new = least_squares(fun, res.x, bounds=(lo, hi), method='trf', x_scale=1.0,
+                            diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                            max_nfev=max_nfev or 50 * p)
+        if not new.cost < res.cost * (1.0 - RESTART_GAIN):
+            if new.cost < res.cost:
+                res = new
+            break
+        res = new
+    return res, res.x
+
+
+#: Factor by which the first stage also starts each log-scaled parameter lower and higher.
+SPREAD = 4.0
+
+
+def _spread(z, coords, lo, hi):
+    """
+    Return the extra starting points of the first stage: each log parameter / and x SPREAD.
+
+    A parameter that spans decades (the Stribeck velocity) has the least certain start,
+    and a start on the wrong side of the data's speeds leaves it without sensitivity.
+    """
+    out = []
+    for i, c in enumerate(coords):
+        if c.log:
+            for step in (-math.log(SPREAD), math.log(SPREAD)):
+                zs = np.array(z, dtype=float)
+                zs[i] = min(hi[i], max(lo[i], zs[i] + step))
+                out.append(zs)
+    return out
 
 
 def _dof(r, p):

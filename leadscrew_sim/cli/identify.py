@@ -1,0 +1,385 @@
+"""
+``identify``: fit parameters so that re-simulating a recording's commands gives its states.
+
+The recorded commands go through the model (:class:`.replay.Resim`, the
+node's command rules) with ideal sensors; the residuals are the simulated
+less the recorded sensor signals (encoder angle, scale position, and the
+motor torque unless every command is a torque command), each divided by its
+noise level. :mod:`leadscrew_sim.core.identification` fits them; the report,
+the parameter file and the plot come from :mod:`.identify_report`. Starting
+and fixed values come from ``--preset`` / ``--params`` / ``--set`` (by
+default the preset the recording names), never from the recording's
+parameters: those would be the answer.
+"""
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from . import identify_report as R
+from .args import CliError, load_params, NS, parse_sets
+from ..core import identification as ident
+from ..core.drive import MODE_TORQUE
+from ..core.fit_data import REL_MAX, t_quantile
+from ..core.params import ParameterError, ScrewParams
+from ..core.presets import load_preset, preset_names
+from ..io.mcap_reader import Recording
+from ..io.run_file import PARAMS_RECORD
+
+HELP = 'fit friction, backlash and other parameters to a recording'
+
+#: The recording's measurement setup: taken from its parameters record, never fitted.
+SETUP_FIELDS = tuple(n for n in ScrewParams.names()
+                     if n.startswith(('encoder_', 'scale_', 'fault_'))) + (
+    'linear_scale', 'velocity_filter_time', 'sensor_seed', 'state_delay', 'command_delay')
+
+#: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
+SIGMA_FLOOR = {'screw_angle': 1e-9, 'nut_position': 1e-12, 'motor_torque': 1e-9}
+
+
+def add_arguments(p):
+    """Add the options of ``identify`` to parser ``p``."""
+    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('--fit', help=f'comma list of parameters to fit (default '
+                   f'{",".join(ident.DEFAULT_FIT)}; fittable: {", ".join(ident.FITTABLE)})')
+    p.add_argument('--preset', help='starting and fixed values: a preset (default: the one '
+                   'the recording names, else tr12x3)')
+    p.add_argument('--params', help='starting and fixed values: a ROS 2 parameter file')
+    p.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='a starting or fixed value (repeatable)')
+    p.add_argument('--output-params', metavar='FILE.yaml', help='write the fitted set as a '
+                   'parameter file (simulate --params, the node)')
+    p.add_argument('--report', metavar='FILE', help='also write the report (it is printed)')
+    p.add_argument('--plot', metavar='FILE.png', help='recorded, initial and fitted signals')
+    p.add_argument('--state-topic', help='JointState topic of the measured states '
+                   '(a foreign recording; default joint_states)')
+    p.add_argument('--command-topic', help='command topic (a foreign recording)')
+    p.add_argument('--command-kind', choices=('torque', 'velocity', 'position'),
+                   help='what a Float64 command on --command-topic is: motor torque [N m], '
+                   'nut velocity [m/s] or nut position [m]')
+    p.add_argument('--screw-joint', help='joint name of the screw (motor) in the states')
+    p.add_argument('--nut-joint', help='joint name of the nut in the states')
+    p.add_argument('--rate', type=float, help='step rate [Hz] of a foreign recording '
+                   '(default 1000)')
+    p.add_argument('--max-nfev', type=int, help='most re-simulations per fit stage')
+    p.add_argument('--quiet', '-q', action='store_true', help='do not print the report')
+
+
+def fit_names(text):
+    """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
+    if text is None:
+        return list(ident.DEFAULT_FIT)
+    names = [n.strip() for n in text.split(',') if n.strip()]
+    for n in names:
+        if n not in ident.FITTABLE:
+            raise CliError(f"--fit: '{n}' is not a fittable parameter (fittable: "
+                           f"{', '.join(ident.FITTABLE)})")
+    if not names or len(set(names)) != len(names):
+        raise CliError(f'--fit {text!r}: give distinct parameter names, comma separated')
+    return names
+
+
+def start_params(args, rec):
+    """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
+    phys, run_ov = parse_sets(args.set)
+    if run_ov:
+        raise CliError('identify --set accepts physics parameters only')
+    if args.preset or args.params:
+        params, label, _extra = load_params(args, phys)
+        return params, label
+    meta = rec.record(PARAMS_RECORD) or {}
+    label = meta.get('preset') if meta.get('preset') in preset_names() else 'tr12x3'
+    params = load_preset(label)
+    return (ScrewParams.from_dict(phys, base=params) if phys else params), label
+
+
+class Problem:
+    """
+    A recording set up for fitting: its replay, its measured signals and their weights.
+
+    ``replay(values)`` returns the columns of ``model.run`` of every step with
+    the starting set, ``values`` and ideal sensors; ``measurements`` the
+    recorded sensor signals on the same step grid.
+    """
+
+    def __init__(self, args, rec, start):
+        """Read the recording (a leadscrew_sim one, or foreign with the mapping options)."""
+        foreign = bool(args.state_topic or args.command_topic) or \
+            rec.record(PARAMS_RECORD) is None
+        self.start = start
+        if foreign:
+            src = R.ForeignReplay(args, rec, start)
+            recorded = start
+        else:
+            from .replay import Resim
+            src = Resim(rec)
+            recorded = src.params
+            _check_geometry(start, recorded)
+        self.source, self.foreign, self.recorded = src, foreign, recorded
+        self.dt = src.dt_ns / NS
+        _segments, commands, _forces = src.inputs()
+        modes = commands[:, 0][np.isfinite(commands[:, 0])]
+        if not len(modes) or src.n_steps == 0:
+            raise CliError(f'{rec.path}: no drive commands (torque_command, velocity_command, '
+                           'position_command or joint_commands) to re-simulate')
+        self.torque_only = bool(np.all(modes == MODE_TORQUE))
+        self.mode_names = sorted({('torque', 'velocity', 'position', 'quick_stop')[int(m)]
+                                  for m in np.unique(modes)})
+        setup = {n: getattr(recorded, n) for n in SETUP_FIELDS}
+        base = {n: getattr(start, n) for n in ScrewParams.names() if n not in SETUP_FIELDS}
+        self.overrides = {**base, **setup, **ident.noiseless_sensors(
+            ScrewParams.from_dict(dict(encoder_bias=ident.NULL_BIAS), base=recorded)
+            if foreign else recorded)}
+        data = src.measured() if foreign else R.measured_of_resim(src)
+        self.measurements, self.noise = _measurements(rec.path, data, recorded,
+                                                      self.torque_only, foreign)
+        self.n = src.n_steps
+        self.evaluations = 0
+        self.raised = []
+        self.loop_noise = {}
+        if not (self.torque_only or foreign) and ident.sensor_sigma(recorded) != \
+                ident.sensor_sigma(ScrewParams()):
+            self._add_loop_noise(recorded)
+
+    def _add_loop_noise(self, recorded):
+        """
+        Add to each signal's noise level the spread the sensor noise causes through the drive.
+
+        In velocity and position mode the drive closes its loops over the noisy,
+        quantised sensors, so the recorded motion itself carries their noise
+        (the motor follows the noise within the loop's bandwidth); the
+        noiseless re-simulation cannot have it. Its size is measured by one
+        re-simulation at the starting values with the recorded sensor model
+        (another seed, so not the recorded noise) against the noiseless one:
+        the RMS difference of each signal, offset removed, is added in
+        quadrature to the sensor's own level.
+        """
+        sensors = {n: getattr(recorded, n) for n in ident.IDEAL_SENSORS}
+        sensors['sensor_seed'] = (recorded.sensor_seed + 1) % 2 ** 31
+        noisy = self.replay(sensors)
+        clean = self.replay({})
+        meas = self.measurements
+        for name in meas.names:
+            col = {'screw_angle': 'motor_angle'}.get(name, name)
+            d = np.asarray(noisy[col][:self.n]) - np.asarray(clean[col][:self.n])
+            if name in ident.OFFSET_SIGNALS:
+                d = d - d.mean()
+            loop = float(np.sqrt(np.mean(d ** 2)))
+            self.loop_noise[name] = loop
+            sigma, how = self.noise[name]
+            total = math.hypot(sigma, loop) if how == 'sensor parameters' else max(sigma, loop)
+            meas.sigma[name] = total
+            self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
+                                f'sensor noise ({loop:.3g})')
+
+    def replay(self, values):
+        """Return the re-simulated columns of every step with the fitted ``values``."""
+        self.evaluations += 1
+        try:
+            return self.source.replay(dict(self.overrides, **values))
+        except ParameterError as exc:
+            raise CliError(f're-simulation with {values}: {exc}') from None
+
+    def residuals(self, values, n=None):
+        """Return the weighted residuals of the first ``n`` steps (all: None)."""
+        return self.measurements.residuals(self.replay(values), n)
+
+
+def _check_geometry(start, recorded):
+    """Refuse a starting set whose read-only geometry differs from the recording's."""
+    info = ScrewParams.field_info()
+    for name, (_t, _d, md) in info.items():
+        if md.get('read_only') and name not in ('linear_scale', 'initial_position') and \
+                getattr(start, name) != getattr(recorded, name):
+            raise CliError(f'the starting set has {name}={getattr(start, name)!r}, the '
+                           f'recording {getattr(recorded, name)!r}: choose the preset or '
+                           'parameter file of this axis (--preset, --params)')
+
+
+def _measurements(path, data, recorded, torque_only, foreign):
+    """Return (Measurements, {signal: (noise level, how it is known)}) of a recording."""
+    known = {} if foreign else ident.sensor_sigma(recorded)
+    signals, sigma, noise = {}, {}, {}
+    wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
+        ([] if torque_only else ['motor_torque'])
+    for name in wanted:
+        y = data[name]
+        if not np.isfinite(y).any():
+            continue
+        s = known.get(name)
+        how = 'sensor parameters'
+        if s is None:
+            s, how = ident.noise_estimate(y), 'estimated from the data'
+        s = max(s, SIGMA_FLOOR[name])
+        signals[name], sigma[name], noise[name] = y, s, (s, how)
+    if not signals:
+        raise CliError(f'{path}: no measured joint states to fit against')
+    return ident.Measurements(signals, sigma), noise
+
+
+def hints(cols):
+    """Return name -> why this run cannot show the parameter, from a re-simulation's columns."""
+    out = {}
+    contact = np.asarray(cols['contact'])
+    if len(np.unique(contact[contact != 0])) < 2:
+        out['backlash'] = 'the thread contact never changed flank (no load reversal)'
+    stick = np.asarray(cols['stick_a'])
+    breaks = np.count_nonzero((stick[:-1] == 1) & (stick[1:] == 0))
+    if breaks == 0:
+        out['mu_s'] = 'the thread never broke away from standstill'
+    slide = np.abs(np.asarray(cols['sliding_velocity']))
+    if slide.max(initial=0.0) == 0.0:
+        out['mu_k'] = out['stribeck_velocity'] = out['mu_viscous'] = 'the thread never slid'
+    return out
+
+
+def horizons(problem):
+    """Return the growing fit horizons [steps]: n / 16 (at least 200 steps) .. n / 2."""
+    n, hs = problem.n, []
+    h = n // 2
+    while h >= max(200, n // 16):
+        hs.insert(0, h)
+        h //= 2
+    return hs or None
+
+
+def fit_recording(args):
+    """
+    Fit the parameters of ``args`` to its recording; return the pieces of the outputs.
+
+    Returns
+    -------
+    dict
+        res (FitResult), params (the fitted ScrewParams), problem, label,
+        initial and final (the re-simulated columns), wall [s].
+
+    """
+    names = fit_names(args.fit)
+    if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
+        raise CliError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
+    t_wall = time.perf_counter()
+    rec = Recording(args.file)
+    rec.require_ros2()
+    start, label = start_params(args, rec)
+    problem = Problem(args, rec, start)
+    try:
+        coords = ident.coordinates(names, start)
+    except ValueError as exc:
+        raise CliError(f'--fit: {exc}') from None
+    initial = problem.replay({})
+    res = ident.fit(problem.residuals, coords, horizons=horizons(problem),
+                    hints=hints(initial), max_nfev=args.max_nfev)
+    fitted = dict(zip(res.names, res.values))
+    final = problem.replay(fitted)
+    problem.raised = problem.measurements.reweight(final)
+    if problem.raised:              # refit with those signals' weights at their rms
+        again = ScrewParams.from_dict(fitted, base=start)
+        res2 = ident.fit(problem.residuals, ident.coordinates(names, again, _bounds(coords)),
+                         hints=hints(initial), max_nfev=args.max_nfev)
+        res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
+        res = res2
+        fitted = dict(zip(res.names, res.values))
+        final = problem.replay(fitted)
+    problem.bootstrap = {}
+    if not problem.foreign and ident.sensor_sigma(problem.recorded) != \
+            ident.sensor_sigma(ScrewParams()):
+        res = _bootstrap(problem, res, names, start, coords, args)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    params = ScrewParams.from_dict({n: v for n, v, vd in zip(res.names, res.values,
+                                                             res.verdicts) if vd.identified},
+                                   base=start)
+    return dict(res=res, params=params, problem=problem, label=label, initial=initial,
+                final=final, wall=time.perf_counter() - t_wall)
+
+
+def run(args):
+    """Fit the parameters and write the report, the parameter file and the plot."""
+    out = fit_recording(args)
+    text = R.report(args.file, out)
+    if not args.quiet:
+        print(text)
+    if args.report:
+        R.write_text(args.report, text + '\n', '--report')
+    if args.output_params:
+        R.write_params(args.output_params, out['params'], out['label'], out['res'])
+    if args.plot:
+        R.plot(args.plot, out['problem'], out['initial'], out['final'])
+    return 0
+
+
+#: Synthetic recordings of the parametric bootstrap of the intervals.
+BOOTSTRAP = 4
+
+
+def _bootstrap(problem, res, names, start, coords, args):
+    """
+    Widen each interval to the spread of refits of synthetic recordings (a parametric bootstrap).
+
+    Each of :data:`BOOTSTRAP` synthetic recordings re-simulates the commands at
+    the fitted values with the recorded sensor model and its own seed (not the
+    recording's), so it holds what the recording would hold if the fit were
+    the truth: sensor noise, quantisation, and in velocity and position mode
+    that noise acting on the motion through the drive. Each is fitted the
+    same way from the fitted values; the RMS of their errors delta_j about
+    those values is the estimator's error s_b, which the Jacobian's interval
+    misses where the residuals are not the noise it assumes (quantisation
+    of a slow signal, the loop's response to its sensors). The interval
+    becomes value +- max(w, t_K s_b) (t quantile of K degrees of freedom: the
+    errors' mean is known to be 0). Returns the new FitResult.
+    """
+    fitted = dict(zip(res.names, res.values))
+    sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
+    meas = problem.measurements
+    recorded_data = meas.data
+    again = ScrewParams.from_dict(fitted, base=start)
+    errors, nfev = [], res.nfev
+    try:
+        for j in range(BOOTSTRAP):
+            sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
+            synthetic = problem.replay(dict(fitted, **sensors))
+            cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
+            meas.data = np.where(meas.mask, np.array([cols[s] for s in meas.names]), 0.0)
+            syn = ident.fit(problem.residuals,
+                            ident.coordinates(names, again, _bounds(coords)),
+                            max_nfev=args.max_nfev, rounds=1)
+            errors.append(np.array(syn.values) - np.array(res.values))
+            nfev += syn.nfev
+    finally:
+        meas.data = recorded_data
+    s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
+    tq = t_975(BOOTSTRAP)
+    verdicts, lower, upper = [], [], []
+    for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
+        problem.bootstrap[c.name] = float(s_b[i])
+        if not vd.identified or not tq * s_b[i] > 0.5 * (vd.upper - vd.lower):
+            verdicts.append(vd)
+            lower.append(vd.lower)
+            upper.append(vd.upper)
+            continue
+        hw = tq * float(s_b[i])
+        lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
+        rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
+        ok = rel <= REL_MAX
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
+               'refits of synthetic recordings)' if ok else
+               f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
+               f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
+        verdicts.append(dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi,
+                                            rel=rel, std=float(s_b[i])))
+        lower.append(lo)
+        upper.append(hi)
+    values = [v if vd.identified else v0
+              for v, v0, vd in zip(res.values, res.initial, verdicts)]
+    return dataclasses.replace(res, values=values, lower=lower, upper=upper,
+                               verdicts=verdicts, nfev=nfev)
+
+
+def t_975(dof):
+    """Return the 97.5 % quantile of the t distribution of ``dof`` degrees of freedom."""
+    return t_quantile(0.95, dof)
+
+
+def _bounds(coords):
+    """Return name -> (lower, upper) of coordinates (a refit keeps the first fit's bounds)."""
+    return {c.name: (c.lower, c.upper) for c in coords}

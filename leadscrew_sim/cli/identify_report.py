@@ -1,0 +1,305 @@
+"""
+The files of ``identify``: a foreign recording read in; the report, parameter file and PNG out.
+
+A recording of another source (:class:`ForeignReplay`) is a JointState state
+topic and a command topic, mapped by the options; its steps and commands
+go through the node's command rules as a leadscrew_sim recording's do.
+"""
+import numpy as np
+
+from .args import CliError, NS
+from ..core import yamlio
+from ..core.commands import CommandHold, NutMap
+from ..core.identification import LEVEL
+from ..core.params import ScrewParams
+from ..io import cdr as C
+
+_UNITS = {n: md['unit'] for n, (_t, _d, md) in ScrewParams.field_info().items()}
+
+
+def _g(v):
+    """Return a float in 6 significant digits ('-' for NaN)."""
+    return '-' if v != v else f'{v:.7g}'
+
+
+def report(path, out):
+    """
+    Return the report of a fit as text.
+
+    Parameters
+    ----------
+    path : str
+        The recording.
+    out : dict
+        What ``identify.fit_recording`` returned.
+
+    """
+    problem, res = out['problem'], out['res']
+    meas = problem.measurements
+    lines = [f'identify {path}: {problem.n} steps of {problem.dt * 1e3:g} ms '
+             f'({problem.n * problem.dt:g} s), drive modes: {", ".join(problem.mode_names)}; '
+             f'starting and fixed values from {out["label"]}',
+             f'fitted against: {", ".join(meas.names)} (re-simulated without sensor noise '
+             'and quantisation; each position signal with a free offset)', '']
+    pct = int(round(100 * LEVEL))
+    lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '
+                 f'{f"{pct} % interval":>29}  verdict')
+    for name, v0, v, lo, hi, vd in zip(res.names, res.initial, res.values, res.lower,
+                                       res.upper, res.verdicts):
+        ci = f'[{_g(lo)}, {_g(hi)}]' if vd.identified else '-'
+        value = _g(v) if vd.identified else f'({_g(v)})'
+        lines.append(f'{name:<20} {_UNITS[name]:<8} {_g(v0):>13} {value:>13} {ci:>29}  '
+                     f'{vd.status}')
+    lines.append('')
+    lines.append('verdicts:')
+    for vd in res.verdicts:
+        kept = '' if vd.identified else ' (kept at its starting value)'
+        lines.append(f'  {vd.name}: {vd.reason}{kept}')
+    fitted = [i for i, vd in enumerate(res.verdicts) if vd.identified]
+    if len(fitted) > 1:
+        lines += ['', 'correlation of the identified parameters:']
+        head = ' ' * 20 + ''.join(f'{res.names[j][:9]:>10}' for j in fitted)
+        lines.append(head)
+        for i in fitted:
+            cells = ''.join(f'{res.correlation[i, j]:>+10.3f}' for j in fitted)
+            lines.append(f'{res.names[i]:<20}{cells}')
+    lines += ['', f'{"signal":<14} {"unit":<5} {"noise sigma":>12} {"rms start":>12} '
+              f'{"rms fitted":>12} {"rms/sigma":>10}  sigma from']
+    rms0, rms1 = meas.rms(out['initial']), meas.rms(out['final'])
+    for i, name in enumerate(meas.names):
+        sigma, how = problem.noise[name]
+        if name in problem.raised:
+            how += f'; weighted by its rms ({meas.sigma[name]:.4g}): the model explains it '\
+                'only to that'
+        lines.append(f'{name:<14} {meas.units[name]:<5} {sigma:>12.4g} {rms0[i]:>12.4g} '
+                     f'{rms1[i]:>12.4g} {rms1[i] / sigma:>10.3g}  {how}')
+    lines += ['', f'covariance: HAC sandwich (Bartlett, bandwidth {res.bandwidth} steps); '
+              f'{pct} % intervals from the t distribution with {res.dof} degrees of freedom',
+              f'{problem.evaluations} re-simulations ({res.nfev} in the fit), '
+              f'{out["wall"]:.2f} s wall; optimiser: {res.message}']
+    figures = _figures(problem)
+    if figures:
+        lines += ['', figures]
+    return '\n'.join(lines)
+
+
+def _figures(problem):
+    """Return the derived figures of the recorded run, if the figures module knows it ('')."""
+    try:
+        from ..core import figures as F
+    except ImportError:
+        return ''
+    del F
+    return ''
+
+
+def write_text(path, text, option):
+    """Write ``text`` to ``path``; a failure is a one-line error naming ``option``."""
+    try:
+        with open(path, 'w') as fh:
+            fh.write(text)
+    except OSError as exc:
+        raise CliError(f'{option} {path}: {exc.strerror or exc}') from None
+
+
+def params_document(params, label, res):
+    """
+    Return the parameter file of a fitted set: ``/**: ros__parameters:``, exact floats.
+
+    Every physics parameter but the injected faults (at their defaults) is
+    written, so ``simulate --params`` and the node (whatever its preset)
+    rebuild the very same set; PyYAML writes floats by their shortest repr,
+    which reads back to the same double.
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The fitted set.
+    label : str
+        Where the starting values came from.
+    res : identification.FitResult
+        The fit (which parameters were identified).
+
+    """
+    values = {name: getattr(params, name) for name in ScrewParams.names()
+              if not name.startswith('fault_')}
+    doc = {'/**': {'ros__parameters': values}}
+    ident = [f'{n}={getattr(params, n)!r}' for n, vd in zip(res.names, res.verdicts)
+             if vd.identified]
+    kept = [n for n, vd in zip(res.names, res.verdicts) if not vd.identified]
+    head = (f'# leadscrew_sim identify: starting values from {label}; identified: '
+            f'{", ".join(ident) or "none"}')
+    if kept:
+        head += f'; not identifiable (starting values): {", ".join(kept)}'
+    return head + '\n' + yamlio.dump(doc) + '\n'
+
+
+def write_params(path, params, label, res):
+    """Write the parameter file of the fitted set (:func:`params_document`)."""
+    write_text(path, params_document(params, label, res), '--output-params')
+
+
+def plot(path, problem, initial, final):
+    """
+    Write a PNG of each measured signal: recorded, initial and fitted, with the residuals.
+
+    Parameters
+    ----------
+    path : str
+        The PNG file.
+    problem : identify.Problem
+        The recording set up for the fit.
+    initial, final : dict
+        The re-simulated columns with the starting and the fitted values.
+
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    meas = problem.measurements
+    n = meas.n
+    t = (np.arange(n) + 1) * problem.dt
+    fig, axes = plt.subplots(len(meas.names), 2, figsize=(12, 3.2 * len(meas.names)),
+                             squeeze=False, sharex=True)
+    d0, d1 = meas.differences(initial), meas.differences(final)
+    for i, name in enumerate(meas.names):
+        m = meas.mask[i]
+        unit = meas.units[name]
+        ax, axr = axes[i]
+        ax.plot(t[m], meas.data[i][m], '.', ms=1.5, color='0.4', label='recorded')
+        # the simulated signals with the offset the fit removed, on the recorded one's level
+        ax.plot(t[m], meas.data[i][m] + d0[i][m], lw=1.0, label='initial')
+        ax.plot(t[m], meas.data[i][m] + d1[i][m], lw=1.0, label='fitted')
+        ax.set_ylabel(f'{name} [{unit}]')
+        ax.legend(loc='best', fontsize=8)
+        axr.plot(t[m], d0[i][m], lw=0.6, alpha=0.6, label='initial')
+        axr.plot(t[m], d1[i][m], lw=0.6, label='fitted')
+        sigma = problem.noise[name][0]
+        axr.axhline(sigma, color='k', lw=0.5, ls='--')
+        axr.axhline(-sigma, color='k', lw=0.5, ls='--', label='+-noise sigma')
+        axr.set_ylabel(f'residual [{unit}]')
+        axr.legend(loc='best', fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel('time [s]')
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=90)
+    except OSError as exc:
+        raise CliError(f'--plot {path}: {exc.strerror or exc}') from None
+    finally:
+        plt.close(fig)
+
+
+class ForeignReplay:
+    """
+    A recording of another source: JointState states and drive commands on mapped topics.
+
+    The steps run at ``--rate`` from the first command's log time; every
+    command goes through :class:`CommandHold` (the node's rules), the states
+    are matched to steps by their stamps.
+    """
+
+    def __init__(self, args, rec, params):
+        """Find the topics and joints and collect the commands and states."""
+        self.path = rec.path
+        self.dt_ns = int(round(NS / (args.rate or 1000.0)))
+        self.params = params
+        state = args.state_topic or rec.role_topic('joint_states')
+        self.state_topic = _topic(rec, state, '--state-topic')
+        if rec.topic_types.get(self.state_topic) != 'sensor_msgs/msg/JointState':
+            raise CliError(f'--state-topic {self.state_topic}: type '
+                           f'{rec.topic_types.get(self.state_topic)!r}, expected '
+                           'sensor_msgs/msg/JointState')
+        if args.command_topic is None:
+            raise CliError('--command-topic: a foreign recording needs the command topic '
+                           '(and --command-kind for a Float64 topic)')
+        self.command_topic = _topic(rec, args.command_topic, '--command-topic')
+        ctype = rec.topic_types.get(self.command_topic)
+        if ctype == 'std_msgs/msg/Float64' and args.command_kind is None:
+            raise CliError('--command-kind: give torque, velocity or position for the Float64 '
+                           f'topic {self.command_topic}')
+        if ctype not in ('std_msgs/msg/Float64', 'sensor_msgs/msg/JointState'):
+            raise CliError(f'--command-topic {self.command_topic}: type {ctype!r}, expected '
+                           'std_msgs/msg/Float64 or sensor_msgs/msg/JointState')
+        self.kind = args.command_kind
+        self.joints = (args.screw_joint or 'screw_joint', args.nut_joint or 'nut_joint')
+        self.commands = [(t, d) for t, topic, d in rec.messages if topic == self.command_topic]
+        self.states = [(t, d) for t, topic, d in rec.messages if topic == self.state_topic]
+        if not self.commands:
+            raise CliError(f'{rec.path}: no messages on the command topic {self.command_topic}')
+        self.t0 = self.commands[0][0]
+        last = max(t for t, _d in self.states) if self.states else self.t0
+        self.n_steps = max(0, (last - self.t0) // self.dt_ns)
+        self._inputs = None
+
+    def inputs(self):
+        """Return (segments, command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
+        if self._inputs is not None:
+            return self._inputs
+        from ..core.model import LeadScrewModel
+        model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
+        hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
+        rows = np.empty((self.n_steps, 4))
+        cmds, i = self.commands, 0
+        screw, nut = self.joints
+        for k in range(self.n_steps):
+            t_k = self.t0 + k * self.dt_ns
+            while i < len(cmds) and cmds[i][0] <= t_k:
+                data = cmds[i][1]
+                i += 1
+                if self.kind is not None and len(data) == 12:
+                    getattr(hold, f'{self.kind}_command')(C.decode_float64(data), t_k)
+                else:
+                    _s, names, pos, vel, eff = C.decode_joint_state(data)
+                    names = [{screw: 'screw_joint', nut: 'nut_joint'}.get(n, n) for n in names]
+                    hold.joint_commands(names, pos, vel, eff, t_k)
+            rows[k] = hold.command_at(t_k)
+        self._inputs = ([], rows, np.zeros(self.n_steps))
+        return self._inputs
+
+    def replay(self, overrides):
+        """Return the columns of ``model.run`` of every step with ``overrides``."""
+        from ..core.model import LeadScrewModel
+        params = ScrewParams.from_dict(overrides, base=self.params)
+        _seg, rows, forces = self.inputs()
+        return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces, commands=rows)
+
+    def measured(self):
+        """Return the recorded screw angle, nut position and motor torque per step (NaN: none)."""
+        return _decode_states(self.states, self.t0, self.dt_ns, self.n_steps, *self.joints)
+
+
+def _topic(rec, name, option):
+    """Return the recorded topic ``name`` (relative names match any namespace)."""
+    for topic in rec.topic_types:
+        if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
+            return topic
+    raise CliError(f"{option} {name}: no such topic in {rec.path} (topics: "
+                   f"{', '.join(sorted(rec.topic_types))})")
+
+
+def _decode_states(states, t0, dt_ns, n, screw, nut):
+    """Return {signal: array (n,)} of JointState messages [(log time, bytes)] by their stamps."""
+    out = {s: np.full(n, np.nan) for s in ('screw_angle', 'nut_position', 'motor_torque')}
+    for _t, data in states:
+        stamp, names, pos, _vel, eff = C.decode_joint_state(data)
+        k = (stamp - t0) // dt_ns - 1
+        if not 0 <= k < n or (stamp - t0) % dt_ns:
+            continue
+        for j, name in enumerate(names):
+            if name == screw:
+                if j < len(pos):
+                    out['screw_angle'][k] = pos[j]
+                if j < len(eff):
+                    out['motor_torque'][k] = eff[j]
+            elif name == nut and j < len(pos):
+                out['nut_position'][k] = pos[j]
+    return out
+
+
+def measured_of_resim(sim):
+    """Return the recorded sensor signals of a leadscrew_sim recording (``Resim``) per step."""
+    topic = sim.topics.get('joint_states')
+    states = [(t, d) for t, tp, d in sim.rec.messages if tp == topic] if topic else []
+    return _decode_states(states, sim.t0, sim.dt_ns, sim.n_steps,
+                          sim.prefix + 'screw_joint', sim.prefix + 'nut_joint')
