@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .args import CliError, NS
-from .replay_inputs import CommandPass, MODEL_EVENTS
+from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
 from ..core import layout as L
 from ..core.delivery import StateDelivery
 from ..core.params import ParameterError, ScrewParams
@@ -23,6 +23,10 @@ from ..io import messages as M, topics as T
 from ..io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
                            run_setting, UPDATE_RECORD)
 from ..io.tick_writer import Events, Stream, write_block
+
+#: Steps per part of a segment when writing: the model runs a part while the writer's
+#: thread compresses the one before.
+BLOCK_TICKS = 1000
 
 
 class Resim:
@@ -197,9 +201,13 @@ class Resim:
         params = ScrewParams.from_dict(overrides, base=self.params) if overrides else self.params
         return LeadScrewModel(params, dt=self.dt_ns / NS)
 
-    def blocks(self, model, line=None, overrides=None, progress=None):
+    def blocks(self, model, line=None, overrides=None, progress=None, block_ticks=None):
         """
         Run the segments through ``model``; yield (segment, columns of ``model.run``).
+
+        With ``block_ticks``, a segment runs in parts of at most that many
+        steps (each a Segment of its own, its groups cut there): the writer
+        then compresses one part while the model runs the next.
 
         Parameters
         ----------
@@ -211,6 +219,8 @@ class Resim:
             Physics parameters kept across the recorded updates.
         progress : Progress, optional
             Told the steps done after each segment.
+        block_ticks : int, optional
+            The longest part [steps] (default: whole segments).
 
         """
         segments, commands, forces = self.inputs()
@@ -227,14 +237,16 @@ class Resim:
                 s = model.state
                 rows = rows.copy()
                 rows[held] = (s[L.S_CMODE], hs * s[L.S_CQ], hs * s[L.S_CW], hs * s[L.S_CT])
-            try:
-                cols = model.run(None, forces[seg.k0:seg.k1], commands=rows)
-            except FloatingPointError as exc:
-                raise CliError(f'simulation fault in steps {seg.k0}..{seg.k1 - 1}: '
-                               f'{exc}') from None
-            yield seg, cols
-            if progress is not None:
-                progress.update(seg.k1)
+            for part in _parts(seg, block_ticks):
+                a, b = part.k0 - seg.k0, part.k1 - seg.k0
+                try:
+                    cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b])
+                except FloatingPointError as exc:
+                    raise CliError(f'simulation fault in steps {part.k0}..{part.k1 - 1}: '
+                                   f'{exc}') from None
+                yield part, cols
+                if progress is not None:
+                    progress.update(part.k1)
         if progress is not None:
             progress.done()
 
@@ -283,7 +295,7 @@ class Resim:
         line = self.line = StateDelivery(model.params)
         enc = M.StateEncoder(self.prefix, self.params.anti_backlash)
         new = NewStates(self.n_steps, len(M.TRUTH_VALUES))
-        for seg, cols in self.blocks(model, line, progress=progress):
+        for seg, cols in self.blocks(model, line, progress=progress, block_ticks=BLOCK_TICKS):
             pieces = self._pieces(seg, writer) if writer is not None else []
             if self.decimation == 1 and not (line.delay or line.drop_rate or line.pending()):
                 _block_states(self, seg, cols, pieces, enc, writer, new)
@@ -332,6 +344,30 @@ class Resim:
     def joint_labels(self):
         """Return the two joint names."""
         return (self.prefix + 'screw_joint', self.prefix + 'nut_joint')
+
+
+def _parts(seg, block_ticks):
+    """Return ``seg`` cut into Segments of at most ``block_ticks`` steps (its groups cut too)."""
+    if not block_ticks or seg.k1 - seg.k0 <= block_ticks:
+        return [seg]
+    parts = []
+    groups = list(seg.groups)
+    for a in range(seg.k0, seg.k1, block_ticks):
+        part = Segment(a, seg.events if a == seg.k0 else [])
+        part.k1 = min(a + block_ticks, seg.k1)
+        rest = []
+        for e0, e1, k, run in groups:
+            if k >= part.k1:
+                rest.append((e0, e1, k, run))
+            elif run and k + run > part.k1:         # a run across the cut
+                inside = part.k1 - k
+                part.groups.append((e0, e0 + inside, k, inside))
+                rest.append((e0 + inside, e1, part.k1, run - inside))
+            else:
+                part.groups.append((e0, e1, k, run))
+        groups = rest
+        parts.append(part)
+    return parts
 
 
 class NewStates:

@@ -181,8 +181,8 @@ def _groups(events, ticks, n):
     ticks = np.asarray(ticks[:ne], dtype=np.int64)
     if not ne:
         return []
-    kinds = np.array([FLOAT_COMMANDS.index(e[1]) if e[1] in FLOAT_COMMANDS else -1
-                      for e in events[:ne]])
+    code = {kind: i for i, kind in enumerate(FLOAT_COMMANDS)}
+    kinds = np.array([code.get(e[1], -1) for e in events[:ne]])
     same = ticks[1:] == ticks[:-1]
     alone = np.ones(ne, dtype=bool)             # the only event of its step
     alone[1:] &= ~same
@@ -206,7 +206,9 @@ def _groups(events, ticks, n):
 
 def _float64s(datas):
     """Return the values of serialized std_msgs/Float64 messages as an array."""
-    if all(len(d) == 12 and d[:2] == _LE_F64 for d in datas):
-        return np.frombuffer(b''.join(datas), dtype=np.uint8).reshape(-1, 12)[:, 4:].copy() \
-            .view('<f8').ravel()
+    blob = b''.join(datas)
+    if len(blob) == 12 * len(datas):
+        rows = np.frombuffer(blob, dtype=np.uint8).reshape(-1, 12)
+        if (rows[:, 0] == _LE_F64[0]).all() and (rows[:, 1] == _LE_F64[1]).all():
+            return rows[:, 4:].copy().view('<f8').ravel()
     return np.array([C.decode_float64(d) for d in datas], dtype=float)

@@ -211,8 +211,11 @@ def _report(args, sim, out, new):
         if n:
             overall = max(overall, float(mx))
     has = new.has_sensor | new.has_truth
-    ks = np.unique(np.concatenate([ks for ks, _d in sim.states.values()] or [[]]).astype(int))
-    compared = int(np.count_nonzero(has[ks[ks < len(has)]]))
+    recorded = np.zeros(len(has), dtype=bool)
+    for ks, _d in sim.states.values():
+        ks = np.asarray(ks, dtype=np.int64)
+        recorded[ks[ks < len(has)]] = True
+    compared = int(np.count_nonzero(recorded & has))
     note = ''
     if compared and overall == 0.0:
         note = (' (bit-identical)' if not bit_differences else

@@ -142,8 +142,11 @@ class Template:
             fixed[off:off + 8] = False
         if self.stamp_off is not None:
             fixed[self.stamp_off:self.stamp_off + 8] = False
-        if not (rows[:, fixed] == np.frombuffer(self.tmpl, dtype=np.uint8)[fixed]).all():
-            return None
+        tmpl = np.frombuffer(self.tmpl, dtype=np.uint8)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], fixed.view(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):     # each span of fixed bytes
+            if not (rows[:, a:b] == tmpl[a:b]).all():
+                return None
         out = np.empty((len(rows), len(self.offsets)))
         for j, off in enumerate(self.offsets):
             out[:, j] = rows[:, off:off + 8].copy().view('<f8').ravel()
