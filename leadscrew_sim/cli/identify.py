@@ -173,17 +173,30 @@ class Problem:
             self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
                                 f'sensor noise ({loop:.3g})')
 
-    def replay(self, values):
-        """Return the re-simulated columns of every step with the fitted ``values``."""
+    def replay(self, values, n=None):
+        """Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``."""
         self.evaluations += 1
+        overrides = dict(self.overrides, **values)
         try:
-            return self.source.replay(dict(self.overrides, **values))
+            if n is None or self.foreign:
+                return self.source.replay(overrides, n) if self.foreign else \
+                    self.source.replay(overrides)
+            src = self.source          # the steps up to n only: the horizon of a fit stage
+            parts, done = [], 0
+            for part, cols in src.blocks(src.model(overrides), overrides=overrides,
+                                         block_ticks=n):
+                parts.append(cols)
+                done = part.k1
+                if done >= n:
+                    break
+            return {k: np.concatenate([c[k] for c in parts]) for k in parts[0]} if parts \
+                else {}
         except ParameterError as exc:
             raise CliError(f're-simulation with {values}: {exc}') from None
 
     def residuals(self, values, n=None):
         """Return the weighted residuals of the first ``n`` steps (all: None)."""
-        return self.measurements.residuals(self.replay(values), n)
+        return self.measurements.residuals(self.replay(values, n), n)
 
 
 def _check_geometry(start, recorded):

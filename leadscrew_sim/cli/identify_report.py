@@ -257,12 +257,13 @@ class ForeignReplay:
         self._inputs = ([], rows, np.zeros(self.n_steps))
         return self._inputs
 
-    def replay(self, overrides):
-        """Return the columns of ``model.run`` of every step with ``overrides``."""
+    def replay(self, overrides, n=None):
+        """Return the columns of ``model.run`` of the first ``n`` steps (all: None)."""
         from ..core.model import LeadScrewModel
         params = ScrewParams.from_dict(overrides, base=self.params)
         _seg, rows, forces = self.inputs()
-        return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces, commands=rows)
+        return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces[:n],
+                                                              commands=rows[:n])
 
     def measured(self):
         """Return the recorded screw angle, nut position and motor torque per step (NaN: none)."""

@@ -1,0 +1,134 @@
+"""
+Benchmark ``leadscrew_sim identify``: a 4-parameter fit of 20 s, 1 kHz recordings, and coverage.
+
+Run: .venv/bin/python bench/bench_identify.py [--seconds 20] [--seeds 6]
+
+Part 1 (speed): ``simulate`` records tr12x3 with its friction and backlash
+moved 20-30 % from the preset (the fit's start), a 17-bit encoder with half a
+count of noise and a 1 um scale with 0.5 um of noise, for ``--seconds`` of
+simulated time at 1 kHz: in velocity mode a ladder of nut speeds (0.5 .. 10
+mm/s, each up and down, with a load opposing the motion at twice the weight)
+and in torque mode triangular torque pulses past breakaway. ``identify`` fits
+mu_s, mu_k, stribeck_velocity and backlash of each; the wall time of the whole
+command (reading, fitting, bootstrap) and the re-simulations are printed.
+
+Part 2 (coverage): the 4 s velocity case of ``test/cli/test_identify.py``
+recorded with ``--seeds`` different sensor seeds; for each fitted parameter
+the share of the seeds whose 95 % interval holds the true value.
+"""
+import argparse
+import importlib
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from leadscrew_sim import cli
+from leadscrew_sim.cli.identify import fit_recording
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / 'test'))
+sys.path.insert(0, str(HERE.parent / 'test' / 'cli'))
+import test_identify as T  # noqa: E402  (the test's cases)
+
+FIT = 'mu_s,mu_k,stribeck_velocity,backlash'
+
+
+def _write(path, times, values):
+    with open(path, 'w') as fh:
+        for t, v in zip(times, values):
+            fh.write(f'{float(t)!r},{float(v)!r}\n')
+
+
+def long_inputs(tmp, mode, seconds):
+    """Write the inputs of a ``seconds`` long tr12x3 run in ``mode``; return simulate's options."""
+    p, _sets = T.truth('tr12x3')
+    if mode == 'torque':
+        pos, neg = T._breakaway(p)
+        t = np.arange(int(seconds * 1000)) * 1e-3
+        tq = np.zeros_like(t)
+        for i in range(int(seconds)):
+            u = (t - i) / 0.4
+            peak = 1.3 * (neg if i % 2 == 0 else pos)
+            tq += np.where((u >= 0) & (u < 1), peak * (1 - np.abs(2 * u - 1)), 0.0)
+        _write(tmp / 'torque.csv', t, tq)
+        return ['--torque-csv', str(tmp / 'torque.csv')]
+    f0 = 2.0 * T._static_load(p)
+    hold = seconds / 10.0 / 2.0 - 0.1          # two ladders of 5 rungs, up and down
+    times, vels, t = [], [], 0.0
+    for _ladder in range(2):
+        for v in T.LADDER:
+            for s in (1.0, -1.0):
+                times += [t, t + hold]
+                vels += [s * v, 0.0]
+                t += hold + 0.1
+    _write(tmp / 'velocity.csv', times, vels)
+    _write(tmp / 'force.csv', times, [-f0 * np.sign(v) for v in vels])
+    return ['--velocity-csv', str(tmp / 'velocity.csv'), '--force-csv', str(tmp / 'force.csv')]
+
+
+def _args(rec):
+    main = importlib.import_module('leadscrew_sim.cli.main')
+    return main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3',
+                                           '--fit', FIT])
+
+
+def speed(seconds):
+    """Print the wall time of 4-parameter fits of ``seconds`` long recordings."""
+    _p, sets = T.truth('tr12x3')
+    for mode in ('velocity', 'torque'):
+        with tempfile.TemporaryDirectory() as d:
+            tmp = Path(d)
+            rec = tmp / 'run.mcap'
+            cli.main(['simulate', '--preset', 'tr12x3', *long_inputs(tmp, mode, seconds),
+                      '--duration', str(seconds), *sets, '-q', '-o', str(rec)])
+            t0 = time.perf_counter()
+            out = fit_recording(_args(rec))
+            wall = time.perf_counter() - t0
+        res, problem = out['res'], out['problem']
+        true = T.truth('tr12x3')[0]
+        errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
+                         f'{"" if vd.identified else " (not identifiable)"}'
+                         for n, v, vd in zip(res.names, res.values, res.verdicts))
+        print(f'{mode:>8} mode, {seconds:g} s at 1 kHz: {wall:.1f} s wall, '
+              f'{problem.evaluations} re-simulations; errors: {errs}')
+
+
+def coverage(seeds):
+    """Print the share of seeds whose 95 % intervals hold the truth (4 s velocity case)."""
+    hits, n = {}, 0
+    for seed in range(seeds):
+        T.SENSORS['sensor_seed'] = 100 + seed
+        with tempfile.TemporaryDirectory() as d:
+            tmp = Path(d)
+            opts, duration = T.profile(tmp, 'tr12x3', 'velocity')
+            true, sets = T.truth('tr12x3')
+            rec = tmp / 'run.mcap'
+            cli.main(['simulate', '--preset', 'tr12x3', *map(str, opts), '--duration',
+                      str(duration), *sets, '-q', '-o', str(rec)])
+            res = fit_recording(_args(rec))['res']
+        n += 1
+        for name, vd in zip(res.names, res.verdicts):
+            t = getattr(true, name)
+            hits.setdefault(name, 0)
+            hits[name] += bool(vd.identified and vd.lower <= t <= vd.upper)
+    for name, k in hits.items():
+        print(f'{name:>18}: 95 % interval holds the truth in {k} of {n} seeds')
+
+
+def main():
+    """Run both parts."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument('--seconds', type=float, default=20.0)
+    ap.add_argument('--seeds', type=int, default=6)
+    a = ap.parse_args()
+    speed(a.seconds)
+    if a.seeds:
+        coverage(a.seeds)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
