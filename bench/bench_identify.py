@@ -98,7 +98,7 @@ def speed(seconds):
 
 def coverage(seeds):
     """Print the share of seeds whose 95 % intervals hold the truth (4 s velocity case)."""
-    hits, n = {}, 0
+    hits, lost, n = {}, {}, 0
     for seed in range(seeds):
         T.SENSORS['sensor_seed'] = 100 + seed
         with tempfile.TemporaryDirectory() as d:
@@ -112,10 +112,11 @@ def coverage(seeds):
         n += 1
         for name, vd in zip(res.names, res.verdicts):
             t = getattr(true, name)
-            hits.setdefault(name, 0)
-            hits[name] += bool(vd.identified and vd.lower <= t <= vd.upper)
+            hits[name] = hits.get(name, 0) + bool(vd.identified and vd.lower <= t <= vd.upper)
+            lost[name] = lost.get(name, 0) + (not vd.identified)
     for name, k in hits.items():
-        print(f'{name:>18}: 95 % interval holds the truth in {k} of {n} seeds')
+        print(f'{name:>18}: 95 % interval holds the truth in {k} of {n - lost[name]} seeds '
+              f'(not identifiable in {lost[name]})')
 
 
 def main():

@@ -321,8 +321,9 @@ def run(args):
     return 0
 
 
-#: Synthetic recordings of the parametric bootstrap of the intervals.
-BOOTSTRAP = 4
+#: Synthetic recordings of the parametric bootstrap of the intervals, and how far from the
+#: fitted values (in half-widths of their intervals) each refit starts.
+BOOTSTRAP, AWAY = 4, 2.0
 
 
 def _bootstrap(problem, res, names, start, coords, args):
@@ -345,7 +346,6 @@ def _bootstrap(problem, res, names, start, coords, args):
     sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
     meas = problem.measurements
     recorded_data = meas.data
-    again = ScrewParams.from_dict(fitted, base=start)
     errors, nfev = [], res.nfev
     try:
         for j in range(BOOTSTRAP):
@@ -353,9 +353,14 @@ def _bootstrap(problem, res, names, start, coords, args):
             synthetic = problem.replay(dict(fitted, **sensors))
             cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
             meas.data = np.where(meas.mask, np.array([cols[s] for s in meas.names]), 0.0)
-            syn = ident.fit(problem.residuals,
-                            ident.coordinates(names, again, _bounds(coords)),
-                            max_nfev=args.max_nfev, rounds=1)
+            away = {}
+            for i, (c, v, vd) in enumerate(zip(coords, res.values, res.verdicts)):
+                sign = (1.0, -1.0)[(j + (i if j >= 2 else 0)) % 2]
+                step = AWAY * 0.5 * (vd.upper - vd.lower) if vd.identified else 0.0
+                away[c.name] = min(c.upper, max(c.lower, v + sign * step))
+            syn = ident.fit(problem.residuals, ident.coordinates(
+                names, ScrewParams.from_dict(away, base=start), _bounds(coords)),
+                max_nfev=args.max_nfev, rounds=1)
             errors.append(np.array(syn.values) - np.array(res.values))
             nfev += syn.nfev
     finally:

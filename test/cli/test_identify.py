@@ -56,12 +56,13 @@ def _static_load(p):
 
 
 def _breakaway(p):
-    """Return the motor torques [N m] (positive, negative) at which the nut starts moving."""
+    """Return the motor torques [N m] (positive, negative) at which the nut starts sliding."""
     out = []
     for sign in (1.0, -1.0):
         ramp = sign * np.linspace(0.0, p.max_torque, 4000)
-        r = LeadScrewModel(p, 1e-3).run(ramp)
-        moved = np.flatnonzero(np.abs(r['nut_velocity']) > 1e-4)
+        v = LeadScrewModel(p, 1e-3).run(ramp)['nut_velocity']
+        v[:100] = 0.0                 # a split nut's preload settles in the first steps
+        moved = np.flatnonzero(np.abs(v) > 1e-4)
         out.append(ramp[moved[0]] if len(moved) else sign * p.max_torque)
     return out
 
@@ -75,13 +76,13 @@ def _write(path, times, values):
 def profile(tmp, preset, mode):
     """Write the CSV inputs of a case into ``tmp``; return simulate's options and duration [s]."""
     p, _sets = truth(preset)
-    if mode == 'torque':         # triangles 1.3 x breakaway: negative, positive, twice
+    if mode == 'torque':         # triangles past breakaway: negative, positive, twice
         pos, neg = _breakaway(p)
         t = np.arange(4000) * 1e-3
         tq = np.zeros_like(t)
         for i in range(4):
             u = (t - i) / 0.4
-            peak = 1.3 * (neg if i % 2 == 0 else pos)
+            peak = PEAK.get(preset, 1.3) * (neg if i % 2 == 0 else pos)
             tq += np.where((u >= 0) & (u < 1), peak * (1 - np.abs(2 * u - 1)), 0.0)
         _write(tmp / 'torque.csv', t, tq)
         return ['--torque-csv', tmp / 'torque.csv'], 4.0
@@ -107,6 +108,10 @@ def profile(tmp, preset, mode):
     _write(tmp / 'force.csv', grid, -f0 * np.sign(held))
     return ['--position-csv', tmp / 'position.csv', '--force-csv', tmp / 'force.csv'], t
 
+
+#: The torque pulses' peak over the breakaway torque: stick_slip's friction drops from 0.375
+#: to 0.12 once the nut slides, so a pulse of 1.3 x would run it into the end stop.
+PEAK = {'stick_slip': 1.05}
 
 #: The speed ladder of each preset [m/s]: the split nut's 124 substeps per step make its
 #: runs 7 times slower, so it climbs fewer rungs.
@@ -136,14 +141,13 @@ def fitted(tmp_path_factory, preset, mode):
 
 
 #: The cases and the parameters each cannot determine (verdict not identifiable): the 10 kg
-#: of tr12x3 keep the thread on one flank under torque alone.
+#: of tr12x3 keep the thread on one flank under torque alone, and so does the split nut's
+#: 20 N preload against the inertia of the torque pulses; through the position loop the
+#: speed ladder's Stribeck velocity is so weakly fixed that refits of synthetic recordings
+#: land +-60 % apart.
 CASES = {('tr12x3', 'torque'): {'backlash'}, ('tr12x3', 'velocity'): set(),
-         ('tr12x3', 'position'): set(), ('anti_backlash', 'velocity'): set()}
-
-#: Where a run pins a parameter less tightly than the issue's tolerance: the position
-#: ladder's smoothed speed changes leave the tr12x3 Stribeck velocity a 95 % interval of
-#: about +-16 %, so there the bar is the interval itself (which must cover the truth).
-LOOSER = {('tr12x3', 'position'): {'stribeck_velocity'}}
+         ('tr12x3', 'position'): {'stribeck_velocity'}, ('anti_backlash', 'torque'): {'backlash'},
+         ('anti_backlash', 'velocity'): set()}
 
 
 @pytest.mark.parametrize('preset,mode', list(CASES))
@@ -160,8 +164,6 @@ def test_recovers_the_true_parameters(tmp_path_factory, preset, mode):
             assert value == getattr(start, name)        # kept, never presented as fitted
             continue
         rel, floor = TOLERANCE[name]
-        if name in LOOSER.get((preset, mode), ()):
-            rel = max(rel, 0.5 * (vd.upper - vd.lower) / value)
         assert vd.identified, vd
         assert abs(value - t) <= max(rel * t, floor), (name, value, t)
         # the 95 % interval widened to 99.9 % (x 3.29 / 1.96): the file checks 14 intervals,
