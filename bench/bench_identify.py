@@ -8,7 +8,9 @@ moved 20-30 % from the preset (the fit's start), a 17-bit encoder with half a
 count of noise and a 1 um scale with 0.5 um of noise, for ``--seconds`` of
 simulated time at 1 kHz: in velocity mode a ladder of nut speeds (0.5 .. 10
 mm/s, each up and down, with a load opposing the motion at twice the weight)
-and in torque mode triangular torque pulses past breakaway. ``identify`` fits
+and in torque mode a triangular torque pulse past breakaway every second,
+raising the nut while it is below its start and lowering it otherwise (so it
+never reaches an end stop). ``identify`` fits
 mu_s, mu_k, stribeck_velocity and backlash of each; the wall time of the whole
 command (reading, fitting, bootstrap) and the re-simulations are printed.
 
@@ -25,7 +27,7 @@ import time
 
 import numpy as np
 
-from leadscrew_sim import cli
+from leadscrew_sim import cli, LeadScrewModel
 from leadscrew_sim.cli.identify import fit_recording
 
 HERE = Path(__file__).resolve().parent
@@ -45,15 +47,18 @@ def _write(path, times, values):
 def long_inputs(tmp, mode, seconds):
     """Write the inputs of a ``seconds`` long tr12x3 run in ``mode``; return simulate's options."""
     p, _sets = T.truth('tr12x3')
-    if mode == 'torque':
+    if mode == 'torque':        # a pulse per second, up while below the start, else down
         pos, neg = T._breakaway(p)
-        t = np.arange(int(seconds * 1000)) * 1e-3
-        tq = np.zeros_like(t)
-        for i in range(int(seconds)):
-            u = (t - i) / 0.4
-            peak = 1.3 * (neg if i % 2 == 0 else pos)
-            tq += np.where((u >= 0) & (u < 1), peak * (1 - np.abs(2 * u - 1)), 0.0)
-        _write(tmp / 'torque.csv', t, tq)
+        u = np.arange(1000) * 1e-3 / 0.4
+        shape = np.where(u < 1, 1 - np.abs(2 * u - 1), 0.0)
+        model = LeadScrewModel(p, 1e-3)
+        pulses = []
+        for _i in range(int(seconds)):
+            x = model.output().nut_position
+            pulses.append(1.3 * (neg if x <= p.initial_position else pos) * shape)
+            model.run(pulses[-1])   # right hand: a negative torque raises the nut
+        tq = np.concatenate(pulses)
+        _write(tmp / 'torque.csv', np.arange(len(tq)) * 1e-3, tq)
         return ['--torque-csv', str(tmp / 'torque.csv')]
     f0 = 2.0 * T._static_load(p)
     hold = seconds / 10.0 / 2.0 - 0.1          # two ladders of 5 rungs, up and down

@@ -146,8 +146,8 @@ def fitted(tmp_path_factory, preset, mode):
 #: speed ladder's Stribeck velocity is so weakly fixed that refits of synthetic recordings
 #: land +-60 % apart.
 CASES = {('tr12x3', 'torque'): {'backlash'}, ('tr12x3', 'velocity'): set(),
-         ('tr12x3', 'position'): {'stribeck_velocity'}, ('anti_backlash', 'torque'): {'backlash'},
-         ('anti_backlash', 'velocity'): set()}
+         ('tr12x3', 'position'): {'stribeck_velocity'}, ('stick_slip', 'position'): set(),
+         ('anti_backlash', 'torque'): {'backlash'}, ('anti_backlash', 'velocity'): set()}
 
 
 @pytest.mark.parametrize('preset,mode', list(CASES))
@@ -242,3 +242,24 @@ def test_bad_input(tmp_path_factory, tmp_path):
     _one_error_line(cli('identify', rec, '--fit', 'mu_k,lead_angle'), "'lead_angle'",
                     'not a fittable parameter', 'mu_s')
     _one_error_line(cli('identify', rec, '--preset', 'tr8x8'), 'major_diameter', 'recording')
+
+
+def test_a_foreign_recording_by_its_topics(tmp_path_factory):
+    """A file read as another source's: states and commands by topic, noise from the data."""
+    rec, _out = fitted(tmp_path_factory, 'tr12x3', 'torque')
+    main = importlib.import_module('leadscrew_sim.cli.main')
+    from leadscrew_sim.cli.identify import fit_recording
+    args = main.build_parser().parse_args([
+        'identify', str(rec), '--preset', 'tr12x3', '--fit', 'mu_s,mu_k,stribeck_velocity',
+        '--state-topic', '/joint_states', '--command-topic', '/torque_command',
+        '--command-kind', 'torque', '--screw-joint', 'screw_joint', '--nut-joint',
+        'nut_joint'])
+    out = fit_recording(args)
+    assert out['problem'].foreign
+    true, _sets = truth('tr12x3')
+    for name, value, vd in zip(out['res'].names, out['res'].values, out['res'].verdicts):
+        rel, _floor = TOLERANCE[name]
+        assert vd.identified and abs(value - getattr(true, name)) <= rel * getattr(true, name)
+    _one_error_line(cli('identify', rec, '--state-topic', '/joint_states'), '--command-topic')
+    _one_error_line(cli('identify', rec, '--state-topic', '/joint_states', '--command-topic',
+                        '/torque_command'), '--command-kind')
