@@ -295,7 +295,11 @@ def fit_recording(args):
         fitted = dict(zip(res.names, res.values))
         final = problem.replay(fitted)
     problem.bootstrap = {}
-    if not problem.foreign and ident.sensor_sigma(problem.recorded) != \
+    misfit = _misfit(problem, final)
+    if misfit:
+        res = _reject(res, misfit)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
             ident.sensor_sigma(ScrewParams()):
         res = _bootstrap(problem, res, names, start, coords, args)
         final = problem.replay(dict(zip(res.names, res.values)))
@@ -319,6 +323,30 @@ def run(args):
     if args.plot:
         R.plot(args.plot, out['problem'], out['initial'], out['final'])
     return 0
+
+
+#: Largest residual RMS / noise level of a signal at an accepted fit.
+MISFIT = 4.0
+
+
+def _misfit(problem, final):
+    """Return why the fit does not explain the recording ('' when it does)."""
+    meas = problem.measurements
+    bad = [f'{name} {rms / problem.noise[name][0]:.3g}' for name, rms in
+           zip(meas.names, meas.rms(final)) if rms > MISFIT * problem.noise[name][0]]
+    if not bad:
+        return ''
+    return (f'the fit does not explain the recording (RMS / sigma: {", ".join(bad)}; above '
+            f'{MISFIT:g} the re-simulation stopped in a wrong minimum or lacks something)')
+
+
+def _reject(res, why):
+    """Return ``res`` with every parameter not identifiable for ``why``, at its start."""
+    verdicts = [dataclasses.replace(vd, identified=False, reason=f'not identifiable: {why}')
+                for vd in res.verdicts]
+    nan = [float('nan')] * len(res.names)
+    return dataclasses.replace(res, values=list(res.initial), verdicts=verdicts, lower=nan,
+                               upper=list(nan))
 
 
 #: Synthetic recordings of the parametric bootstrap of the intervals, and how far from the
