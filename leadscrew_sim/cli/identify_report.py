@@ -77,20 +77,7 @@ def report(path, out):
               f'{pct} % intervals from the t distribution with {res.dof} degrees of freedom',
               f'{problem.evaluations} re-simulations ({res.nfev} in the fit), '
               f'{out["wall"]:.2f} s wall; optimiser: {res.message}']
-    figures = _figures(problem)
-    if figures:
-        lines += ['', figures]
     return '\n'.join(lines)
-
-
-def _figures(problem):
-    """Return the derived figures of the recorded run, if the figures module knows it ('')."""
-    try:
-        from ..core import figures as F
-    except ImportError:
-        return ''
-    del F
-    return ''
 
 
 def write_text(path, text, option):
