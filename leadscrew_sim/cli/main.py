@@ -8,8 +8,7 @@ for tracebacks.
 import os
 import sys
 
-from . import excite
-from . import identify, info, play, plot, resim, simulate
+from . import excite, identify, info, play, plot, resim, simulate
 from .args import CliError, Parser, PROG, UsageError
 from ..core.params import ParameterError
 from ..io.mcap_reader import RecordingError
@@ -23,7 +22,7 @@ VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', re
 def build_parser():
     """Return the argument parser of all verbs."""
     parser = Parser(prog=PROG, description='Offline tools for the leadscrew_sim lead screw '
-                    'axis: simulate, info, resim, play, plot.')
+                    'axis: simulate, info, resim, play, plot, excite, identify.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     for name, verb in VERBS:

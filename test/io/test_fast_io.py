@@ -80,7 +80,7 @@ def test_topic_arrays_match_the_mcap_library(tmp_path, compression):
 
 @pytest.mark.parametrize('compression', ['zstd', 'lz4', 'none'])
 def test_every_compression_reads_in_rosbags_and_passes_mcap_doctor(tmp_path, compression):
-    """rosbags reads every message of the file; the Go mcap doctor finds no error."""
+    """Every message of the file reads back in rosbags; the Go mcap doctor finds no error."""
     from rosbags.highlevel import AnyReader
     path = _simulate(tmp_path, compression)
     n = len(_library_messages(path))
@@ -103,7 +103,7 @@ def _doubles(rng, n):
 
 
 def test_encoded_rows_are_the_template_rows():
-    """EncodedRows writes the bytes of Template.rows and TfEncoder.rows, any slice."""
+    """Encoded rows are the bytes of Template.rows and TfEncoder.rows, for any slice."""
     rng = np.random.default_rng(7)
     n = 257
     stamps = rng.integers(-2**31 * helpers.NS, 2**31 * helpers.NS - 1, n)
