@@ -84,8 +84,10 @@ class Resim:
         self.states = {}            # rel -> (step indices, messages) of the recorded states
         order = self._read_messages()
         order += self._read_records()
-        index = sorted(range(len(self.events)), key=order.__getitem__)
-        self.events = [self.events[i] for i in index]
+        if order:                   # by log time, then rank (stable: file order)
+            times, ranks = zip(*order)
+            index = np.lexsort((np.array(ranks, dtype=float), np.array(times, dtype=np.int64)))
+            self.events = [self.events[i] for i in index.tolist()]
         last_state = max((int(ks[-1]) for ks, _d in self.states.values() if len(ks)),
                          default=-1)
         if last_state < 0:
