@@ -389,7 +389,7 @@ def _bootstrap(problem, res, names, start, coords, args):
                 away[c.name] = min(c.upper, max(c.lower, v + sign * step))
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), _bounds(coords)),
-                max_nfev=args.max_nfev, rounds=1)
+                max_nfev=args.max_nfev, rounds=1, scan=False)
             errors.append(np.array(syn.values) - np.array(res.values))
             nfev += syn.nfev
     finally:

@@ -27,9 +27,9 @@ import numpy as np
 
 from .params import ScrewParams
 from . import fit_data as V
-from .fit_data import (IDEAL_SENSORS, Measurements, noise_estimate, noiseless_sensors,
-                       NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse, sensor_sigma,
-                       SIGNALS)
+from .fit_data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
+                       noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
+                       sensor_sigma, SIGNALS)
 
 __all__ = ['Coordinate', 'DEFAULT_FIT', 'FitResult', 'FITTABLE', 'IDEAL_SENSORS', 'LEVEL',
            'Measurements', 'NULL_BIAS', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates',
@@ -76,33 +76,6 @@ def typical_size(name, params):
     force = torque * 2.0 * math.pi / params.lead
     return {'torque': torque, 'torque_rate': torque / 10.0, 'force': force,
             'force_rate': force / 0.01}.get(size, size)
-
-
-@dataclasses.dataclass(frozen=True)
-class Coordinate:
-    """
-    One fitted parameter in the optimiser's coordinates.
-
-    z = v / scale (linear) or z = ln(v / scale) (log); bounds [lower, upper] in
-    the parameter's unit.
-    """
-
-    name: str
-    initial: float
-    lower: float
-    upper: float
-    log: bool
-    scale: float
-    typical: float
-
-    def to_z(self, v):
-        """Return the coordinate of value ``v``."""
-        return math.log(v / self.scale) if self.log else v / self.scale
-
-    def to_value(self, z):
-        """Return the value of coordinate ``z`` (clipped into the bounds)."""
-        v = self.scale * math.exp(z) if self.log else z * self.scale
-        return min(self.upper, max(self.lower, v))
 
 
 def bounds(name, params):
@@ -216,7 +189,7 @@ class _Counted:
     def __init__(self, residuals, coords, fixed):
         self.residuals, self.coords, self.fixed = residuals, coords, fixed
         self.nfev = 0
-        self.shape = None
+        self.shape, self.size = None, 0
         self.horizon = None
 
     def values(self, z):
@@ -227,7 +200,7 @@ class _Counted:
     def __call__(self, z):
         self.nfev += 1
         r = np.asarray(self.residuals(self.values(z), self.horizon), dtype=float)
-        self.shape = r.shape
+        self.shape, self.size = r.shape, r.size
         return r.ravel()
 
 
@@ -259,34 +232,8 @@ class _Anchored:
 ANCHOR = 1.0
 
 
-def _jacobian(fun, z, r0, steps):
-    """
-    Return the difference Jacobian of ``fun`` at ``z``: per column the flattest of four.
-
-    A re-simulation is piecewise smooth in its parameters: a breakaway, a
-    flank change or a stick happens in a whole step, so a parameter change
-    that moves it by one step makes the signals jump; and a parameter the
-    signals hardly depend on changes them only by the solver's round-off.
-    The smooth part is the derivative; a difference across a jump overstates
-    it, and so does round-off divided by a small step (both understate the
-    interval). Of the forward and backward differences of a small and a
-    larger step, the one with the smallest norm crossed neither.
-    """
-    jac = np.empty((r0.size, len(z)))
-    for i in range(len(z)):
-        cols = []
-        for step in steps:
-            h = step * max(1.0, abs(z[i]))
-            for sign in (1.0, -1.0):
-                zi = np.array(z, dtype=float)
-                zi[i] += sign * h
-                cols.append((fun(zi) - r0) / (sign * h))
-        jac[:, i] = min(cols, key=np.linalg.norm)
-    return jac
-
-
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
-        hints=None, ftol=1e-8, xtol=1e-8, rounds=2):
+        hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 
@@ -359,14 +306,18 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
                                     max_nfev=max_nfev or 50 * len(active))
                 if best is None or res.cost < best.cost:
                     best = res
-            res, z = best, best.x
+            res, z_stage = best, z
             if h is None:
-                res, z = _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, len(active))
+                res, _z = _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, len(active))
+            if _round == 0 and scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
+                res = _scanned(target, res, [z_stage, res.x], lo, hi, step, ftol, xtol,
+                               max_nfev, active, restart=h is None)
+            z = res.x
         fun.horizon = None
         r = fun(z)
         nfev += fun.nfev
         message = res.message
-        jac = _jacobian(fun, z, r, JAC_STEPS)
+        jac = V.interval_jacobian(fun, z, r, JAC_STEPS)
         nfev_after = fun.nfev
         cov, lag = sandwich(jac, r, fun.shape)
         verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),
@@ -407,6 +358,56 @@ def _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
             break
         res = new
     return res, res.x
+
+
+#: RMS / noise level of a signal above which the whole run's local fit is taken for a wrong
+#: minimum and a coordinate scan looks for a better basin (a fit of the right one leaves 1).
+SCAN_ABOVE = 2.0
+
+#: Half-widths of the scan's grids in z (linear: a fraction of the start; log: a factor
+#: e^w), each grid of SCAN_POINTS points around the best point of the last, and its sweeps.
+SCAN_WIDTHS, SCAN_POINTS, SCAN_SWEEPS = ((0.5, 1.4), (0.05, 0.14), (0.005, 0.014)), 11, 2
+
+
+def _scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, restart):
+    """
+    Return the result of a coordinate scan and a local fit from it, if it lowers the cost.
+
+    A re-simulation of stick-slip or of a drive loop over coarse sensors is so
+    rough in its parameters (a breakaway a step earlier changes the rest of
+    the run) that the basin of the optimum is only a few per cent wide, while
+    outside it the cost still falls toward it on the large scale. A local fit
+    from 20 % off then stops on a ridge. A derivative-free search follows the
+    large-scale trend: each coordinate in turn is set to the best of a grid
+    around its current value (the others held), the grid narrowed by 10
+    twice; the sweeps start from the starting point and from the local fit,
+    and the local fit is repeated from the best point found.
+    """
+    from scipy.optimize import least_squares
+    best_z, best_c = np.array(res.x), float(np.sum(res.fun ** 2))
+    for zs in starts:
+        z = np.array(zs, dtype=float)
+        c = float(np.sum(fun(z) ** 2))
+        for wide in SCAN_WIDTHS:
+            for _sweep in range(SCAN_SWEEPS):
+                for i, co in enumerate(coords):
+                    w = wide[1] if co.log else wide[0] * max(abs(z[i]), 1e-3)
+                    for zi in np.linspace(z[i] - w, z[i] + w, SCAN_POINTS):
+                        zt = np.array(z)
+                        zt[i] = min(hi[i], max(lo[i], zi))
+                        ct = float(np.sum(fun(zt) ** 2))
+                        if ct < c:
+                            z, c = zt, ct
+        if c < best_c:
+            best_z, best_c = z, c
+    if best_c >= 2.0 * res.cost:
+        return res
+    new = least_squares(fun, best_z, bounds=(lo, hi), method='trf', x_scale=1.0,
+                        diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                        max_nfev=max_nfev or 50 * len(coords))
+    if restart:
+        new, _z = _restart(fun, new, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+    return new if new.cost < res.cost else res
 
 
 #: Factor by which the first stage also starts each log-scaled parameter lower and higher.
