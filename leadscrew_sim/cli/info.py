@@ -1,7 +1,9 @@
 """``info`` (``summary``): one screen about a recording (any ros2-profile MCAP)."""
 import os
 
-from .args import NS, Progress
+import numpy as np
+
+from .args import CliError, NS, Progress
 from .replay import Resim
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
@@ -15,6 +17,10 @@ def add_arguments(p):
     p.add_argument('file')
     p.add_argument('--no-resim', action='store_true',
                    help='skip the re-simulation (stick fraction, energy)')
+    p.add_argument('--figures', metavar='PROFILE', nargs='?', const='auto',
+                   help='also print the derived figures of an identification run (breakaway, '
+                        'sweep, reversals, iso230; without a name: the profile simulate '
+                        '--excite recorded)')
     p.add_argument('--quiet', '-q', action='store_true')
 
 
@@ -22,8 +28,9 @@ def run(args):
     """Print one screen about a recording; return the exit status."""
     rec = Recording(args.file)
     rec.require_ros2()
-    _print_channels(args, rec)
     meta = rec.record(PARAMS_RECORD)
+    figures = _figures_profile(args, rec) if meta is not None else None
+    _print_channels(args, rec)
     if meta is None:
         print('(not a leadscrew_sim recording: generic counts only)')
         return 0
@@ -41,7 +48,55 @@ def run(args):
         _print_recorded(rec)
     elif not args.no_resim:
         _print_resim(args, rec)
+    if figures:
+        _print_figures(args, rec, meta, figures)
     return 0
+
+
+def _figures_profile(args, rec):
+    """Return the profile name of ``--figures`` (None without it); check it first."""
+    from ..core.excitation import PROFILES
+    from ..io.run_file import CLI_RECORD
+    name = args.figures
+    if name == 'auto':
+        source = (rec.record(CLI_RECORD) or {}).get('torque_input', '')
+        name = source.split()[0][len('excite='):] if source.startswith('excite=') else ''
+        if not name:
+            raise CliError(f'{args.file}: no --excite profile recorded; give --figures '
+                           f'PROFILE ({", ".join(PROFILES)})')
+    if name is not None and name not in PROFILES:
+        raise CliError(f'--figures {name!r}: no such profile ({", ".join(PROFILES)})')
+    return name
+
+
+def _print_figures(args, rec, meta, name):
+    """Print the derived figures of an identification profile run (core.figures)."""
+    from ..core import figures as F
+    from ..core.excitation import PROFILES
+    from ..io.run_file import params_from_record
+    kind = PROFILES[name].kind
+    topic = rec.role_topic(f'{kind}_command')
+    js_topic = rec.role_topic('joint_states')
+    cmd_t, cmd_v, rows = [], [], []
+    for t, tp, data in rec.messages:
+        if tp == topic:
+            cmd_t.append(t / NS)
+            cmd_v.append(C.decode_float64(data))
+        elif tp == js_topic:
+            stamp, _n, pos, vel, eff = C.decode_joint_state(data)
+            if len(pos) >= 2 and len(vel) >= 2 and eff:
+                rows.append((stamp / NS, eff[0], vel[0], pos[1], vel[1]))
+    if not cmd_t or not rows:
+        raise CliError(f'{args.file}: --figures {name} needs {kind}_command and joint_states '
+                       'messages')
+    t, tq, w, x, v = (np.array(c) for c in zip(*rows))
+    run = dict(time=t, command=F.hold_series(cmd_t, cmd_v, t), motor_torque=tq,
+               motor_velocity=w, nut_position=x, nut_velocity=v)
+    params, _missing = params_from_record(meta)
+    print(f'derived figures of the {name} run (core.figures, from joint_states and '
+          f'{kind}_command):')
+    for line in F.format_figures(F.derived_figures(name, run, load=F.axial_load(params))):
+        print('  ' + line)
 
 
 def _print_channels(args, rec):
