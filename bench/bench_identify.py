@@ -1,7 +1,7 @@
 """
 Benchmark ``leadscrew_sim identify``: a 4-parameter fit of 20 s, 1 kHz recordings, and coverage.
 
-Run: .venv/bin/python bench/bench_identify.py [--seconds 20] [--seeds 6]
+Run: .venv/bin/python bench/bench_identify.py [--seconds 20] [--seeds 6] [--profiles P,..]
 
 Part 1 (speed): ``simulate`` records tr12x3 with its friction and backlash
 moved 20-30 % from the preset (the fit's start), a 17-bit encoder with half a
@@ -17,6 +17,9 @@ command (reading, fitting, bootstrap) and the re-simulations are printed.
 Part 2 (coverage): the 4 s velocity case of ``test/cli/test_identify.py``
 recorded with ``--seeds`` different sensor seeds; for each fitted parameter
 the share of the seeds whose 95 % interval holds the true value.
+
+Part 3 (``--profiles sweep,iso230,...``): ``simulate --excite`` recordings of tr12x3
+with the test's truth and sensors, fitted the same way; the errors and verdicts.
 """
 import argparse
 import importlib
@@ -124,15 +127,50 @@ def coverage(seeds):
               f'(not identifiable in {lost[name]})')
 
 
+#: The excite profiles fitted by part 3, with their options (iso230: one cycle).
+PROFILES = {'breakaway': [], 'reversals': [], 'sweep': [],
+            'iso230': ['--excite-opt', 'cycles=1', '--excite-opt', 'dwell=0.3']}
+
+
+def _holds(vd, t):
+    """Return whether an identified parameter's 95 % interval holds the true value ``t``."""
+    return bool(vd.identified and vd.lower <= t <= vd.upper)
+
+
+def profiles(names):
+    """Print the errors and verdicts of 4-parameter fits of ``simulate --excite`` recordings."""
+    true, sets = T.truth('tr12x3')
+    for name in names:
+        with tempfile.TemporaryDirectory() as d:
+            rec = Path(d) / 'run.mcap'
+            cli.main(['simulate', '--preset', 'tr12x3', '--excite', name, *PROFILES[name],
+                      *sets, '-q', '-o', str(rec)])
+            t0 = time.perf_counter()
+            out = fit_recording(_args(rec))
+            wall = time.perf_counter() - t0
+        res = out['res']
+        errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
+                         f'{"" if vd.identified else " (not identifiable)"}'
+                         f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
+                         for n, v, vd in zip(res.names, res.values, res.verdicts))
+        print(f'{name:>10}: {out["problem"].n} steps, {out["problem"].slow} left out (slow), '
+              f'{wall:.1f} s wall; {errs}')
+
+
 def main():
-    """Run both parts."""
+    """Run the parts asked for (speed, coverage, profiles)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    ap.add_argument('--seconds', type=float, default=20.0)
-    ap.add_argument('--seeds', type=int, default=6)
+    ap.add_argument('--seconds', type=float, default=20.0, help='0: no speed part')
+    ap.add_argument('--seeds', type=int, default=6, help='0: no coverage part')
+    ap.add_argument('--profiles', default='', help='comma list of excite profiles to fit '
+                    f'({", ".join(PROFILES)})')
     a = ap.parse_args()
-    speed(a.seconds)
+    if a.seconds:
+        speed(a.seconds)
     if a.seeds:
         coverage(a.seeds)
+    if a.profiles:
+        profiles([n for n in a.profiles.split(',') if n])
     return 0
 
 

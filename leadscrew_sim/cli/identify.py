@@ -20,7 +20,7 @@ import numpy as np
 from . import identify_report as R
 from .args import CliError, load_params, NS, parse_sets
 from ..core import identification as ident
-from ..core.drive import MODE_TORQUE
+from ..core.drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
 from ..core.fit_data import REL_MAX, t_quantile
 from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, preset_names
@@ -135,6 +135,9 @@ class Problem:
         self.measurements, self.noise = _measurements(rec.path, data, recorded,
                                                       self.torque_only, foreign)
         self.n = src.n_steps
+        self.slow = 0
+        if not (self.torque_only or foreign) and recorded.encoder_counts > 0:
+            self.slow = _drop_slow(self.measurements, commands, recorded, self.dt)
         self.evaluations = 0
         self.raised = []
         self.loop_noise = {}
@@ -208,6 +211,46 @@ def _check_geometry(start, recorded):
             raise CliError(f'the starting set has {name}={getattr(start, name)!r}, the '
                            f'recording {getattr(recorded, name)!r}: choose the preset or '
                            'parameter file of this axis (--preset, --params)')
+
+
+#: Commanded motor speed, in velocity quanta of the encoder through the drive period, below
+#: which (and above 0) for at least SLOW_DWELL [s] a step's measurements are left out.
+SLOW_QUANTA, SLOW_DWELL = 3.0, 0.1
+
+
+def _drop_slow(meas, commands, recorded, dt):
+    """
+    Leave out the steps of a slow commanded motion; return how many.
+
+    The drive's velocity is the difference quotient of the encoder's readings
+    over the drive period, so it moves in quanta of 2 pi / counts / period.
+    At a commanded speed of a few quanta the loop acts on a reading that
+    toggles between 0 and a quantum, and the recorded motion is the limit
+    cycle of that loop, which the noiseless re-simulation does not have: there
+    it pulls the friction toward values that mimic the cycle. Such steps
+    (commanded motor speed above 0 and below :data:`SLOW_QUANTA` quanta: the
+    velocity command, or the position command's rate, for at least
+    :data:`SLOW_DWELL`, long enough for the cycle to build; a speed change
+    passing through them is kept) carry no trustworthy information on the
+    friction; a parameter only they would show is then judged on the rest.
+    """
+    quantum = 2.0 * math.pi / recorded.encoder_counts * recorded.drive_rate
+    mode, pos, vel = (np.asarray(commands[:, i], dtype=float) for i in range(3))
+    held = np.isfinite(mode)
+    idx = np.maximum.accumulate(np.where(held, np.arange(len(mode)), 0))
+    mode, pos, vel = mode[idx], pos[idx], vel[idx]
+    rate = np.abs(np.gradient(pos, dt)) if len(pos) > 1 else np.zeros_like(pos)
+    speed = np.where(mode == MODE_VELOCITY, np.abs(vel),
+                     np.where(mode == MODE_POSITION, rate, 0.0))
+    slow = (speed > 1e-12) & (speed < SLOW_QUANTA * quantum)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):       # runs of slow steps [a, b)
+        if (b - a) * dt < SLOW_DWELL:
+            slow[a:b] = False
+    n = min(len(slow), meas.n)
+    meas.mask[:, :n] &= ~slow[None, :n]
+    meas.data = np.where(meas.mask, meas.data, 0.0)
+    return int(np.count_nonzero(slow[:n]))
 
 
 def _measurements(path, data, recorded, torque_only, foreign):

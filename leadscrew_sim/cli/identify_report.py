@@ -40,7 +40,12 @@ def report(path, out):
              f'({problem.n * problem.dt:g} s), drive modes: {", ".join(problem.mode_names)}; '
              f'starting and fixed values from {out["label"]}',
              f'fitted against: {", ".join(meas.names)} (re-simulated without sensor noise '
-             'and quantisation; each position signal with a free offset)', '']
+             'and quantisation; each position signal with a free offset)']
+    if getattr(problem, 'slow', 0):
+        lines.append(f'left out: {problem.slow} steps of a commanded speed below '
+                     'the encoder\'s velocity quantum through the drive period times 3 (the '
+                     'drive\'s limit cycle there is not in the re-simulation)')
+    lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '
                  f'{f"{pct} % interval":>29}  verdict')

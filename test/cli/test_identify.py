@@ -276,3 +276,51 @@ def test_a_fit_that_misses_the_recording_identifies_nothing(tmp_path_factory):
     # the values reported are the starting ones, 20-30 % off the truth, never the wrong fit
     for name, value in zip(res.names, res.values):
         assert value == getattr(start, name) != getattr(true, name)
+
+
+#: Nut speeds [m/s] of a ladder with two rungs under 3 velocity quanta of the 17-bit encoder
+#: through the 4 kHz drive period (2 pi / 2^17 * 4000 rad/s, 0.0916 mm/s at the nut).
+SLOW_LADDER = (0.05e-3, 0.15e-3, 2e-3, 10e-3)
+
+
+def test_slow_plateaus_are_left_out(tmp_path):
+    """
+    Speeds under 3 velocity quanta: their steps are left out, the rest fits the truth.
+
+    The oracle of the steps left out is a count of the commanded rungs; the
+    values are held to the issue's tolerances (this ladder's mu_s is 0.5 % off,
+    outside its interval: see the coverage part of bench/bench_identify.py).
+    """
+    p, sets = truth('tr12x3')
+    times, vels, t = [], [], 0.0
+    for v in SLOW_LADDER:
+        for s in (1.0, -1.0):
+            times += [t, t + 0.3]
+            vels += [s * v, 0.0]
+            t += 0.4
+    _write(tmp_path / 'velocity.csv', times, vels)
+    f0 = 2.0 * _static_load(p)
+    _write(tmp_path / 'force.csv', times, [-f0 * np.sign(v) for v in vels])
+    rec = tmp_path / 'run.mcap'
+    cli_ok('simulate', '--preset', 'tr12x3', '--velocity-csv', tmp_path / 'velocity.csv',
+           '--force-csv', tmp_path / 'force.csv', '--duration', t, *sets, '-q', '-o', rec)
+    main = importlib.import_module('leadscrew_sim.cli.main')
+    from leadscrew_sim.cli.identify import fit_recording
+    out = fit_recording(main.build_parser().parse_args(['identify', str(rec), '--preset',
+                                                        'tr12x3', '--fit', FIT]))
+    quantum = 2 * math.pi / p.encoder_counts * p.drive_rate * p.lead / (2 * math.pi)
+    slow = [v for v in SLOW_LADDER if v < 3 * quantum]
+    assert len(slow) == 2
+    # counting: each slow rung is commanded for 0.3 s each way at 1 kHz; the step where a
+    # command changes may fall either side (one per edge, 4 edges per rung)
+    assert abs(out['problem'].slow - 2 * 300 * len(slow)) <= 4 * len(slow)
+    res, start = out['res'], load_preset('tr12x3')
+    for name, value, vd in zip(res.names, res.values, res.verdicts):
+        t_val = getattr(p, name)
+        if not vd.identified:
+            assert value == getattr(start, name)
+            continue
+        rel, floor = TOLERANCE[name]
+        assert abs(value - t_val) <= max(rel * t_val, floor), (name, value, t_val)
+    # the kinetic friction shows on the fast rungs, which are kept
+    assert res.verdict('mu_k').identified
