@@ -20,6 +20,7 @@ the share of the seeds whose 95 % interval holds the true value.
 
 Part 3 (``--profiles sweep,iso230,...``): ``simulate --excite`` recordings of tr12x3
 with the test's truth and sensors, fitted the same way; the errors and verdicts.
+Part 4 (``--cases anti_backlash:position,...``): the test's cases, any preset and mode.
 """
 import argparse
 import importlib
@@ -157,6 +158,28 @@ def profiles(names):
               f'{wall:.1f} s wall; {errs}')
 
 
+def cases(names):
+    """Print the errors and verdicts of the test's cases ``preset:mode`` (any of them)."""
+    for key in names:
+        preset, mode = key.split(':')
+        true, sets = T.truth(preset)
+        with tempfile.TemporaryDirectory() as d:
+            tmp = Path(d)
+            opts, duration = T.profile(tmp, preset, mode)
+            rec = tmp / 'run.mcap'
+            cli.main(['simulate', '--preset', preset, *map(str, opts), '--duration',
+                      str(duration), *sets, '-q', '-o', str(rec)])
+            args = _args(rec)
+            args.preset = preset
+            out = fit_recording(args)
+        errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
+                         f'{"" if vd.identified else " (not identifiable)"}'
+                         f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
+                         for n, v, vd in zip(out['res'].names, out['res'].values,
+                                             out['res'].verdicts))
+        print(f'{key:>24}: {out["problem"].slow} steps left out; {errs}')
+
+
 def main():
     """Run the parts asked for (speed, coverage, profiles)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -164,6 +187,8 @@ def main():
     ap.add_argument('--seeds', type=int, default=6, help='0: no coverage part')
     ap.add_argument('--profiles', default='', help='comma list of excite profiles to fit '
                     f'({", ".join(PROFILES)})')
+    ap.add_argument('--cases', default='', help='comma list of preset:mode cases of the '
+                    'test to fit (e.g. anti_backlash:position)')
     a = ap.parse_args()
     if a.seconds:
         speed(a.seconds)
@@ -171,6 +196,8 @@ def main():
         coverage(a.seeds)
     if a.profiles:
         profiles([n for n in a.profiles.split(',') if n])
+    if a.cases:
+        cases([n for n in a.cases.split(',') if n])
     return 0
 
 
