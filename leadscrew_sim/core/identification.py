@@ -271,6 +271,9 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         Tolerances of ``least_squares``.
     rounds : int
         Most fits.
+    scan : bool
+        Scan coordinate by coordinate out of a stage that leaves a residual
+        above twice the noise (False: local fits only).
 
     """
     from scipy.optimize import least_squares
