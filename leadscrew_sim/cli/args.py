@@ -1,5 +1,7 @@
 """Shared pieces of the verbs: errors, the parser class, ``--set``, parameter loading, progress."""
 import argparse
+import contextlib
+import gc
 import math
 from pathlib import Path
 import sys
@@ -160,3 +162,22 @@ def add_compression_argument(p):
 def compression_of(args):
     """Return the McapWriter compression of ``--compression``."""
     return '' if args.compression == 'none' else args.compression
+
+
+@contextlib.contextmanager
+def gc_paused():
+    """
+    Pause Python's cyclic garbage collector inside the block.
+
+    Reading and writing a recording makes hundreds of thousands of small
+    acyclic objects (message tuples and bytes); each of them counts toward a
+    collection that finds nothing to free, about a third of resim's reading
+    time. Reference counting still frees them.
+    """
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()

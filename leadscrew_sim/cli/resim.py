@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .args import add_compression_argument, CliError, compression_of, parse_sets, Progress
+from .args import (add_compression_argument, CliError, compression_of, gc_paused, parse_sets,
+                   Progress)
 from .replay import Resim
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
@@ -167,6 +168,11 @@ def _truth_values(datas):
 
 def run(args):
     """Re-simulate a recording and print the difference from the recorded states."""
+    with gc_paused():
+        return _run(args)
+
+
+def _run(args):
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
         raise CliError('resim --set accepts physics parameters only')

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from .args import (add_compression_argument, CliError, compression_of, DEFAULT_PRESET,
-                   load_params, NS, parse_sets, Progress)
+                   gc_paused, load_params, NS, parse_sets, Progress)
 from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
 from .schedule import read_schedule
 from ..core import layout as L
@@ -80,6 +80,11 @@ def add_arguments(p):
 
 def run(args):
     """Run the model offline and record it in the node's layout; return the exit status."""
+    with gc_paused():
+        return _run(args)
+
+
+def _run(args):
     from ..core.model import LeadScrewModel
     phys_ov, run_ov = parse_sets(args.set)
     params, label, extra = load_params(args, phys_ov)
