@@ -20,8 +20,6 @@ MODEL_EVENTS = (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD)
 #: The std_msgs/Float64 drive commands, by their CommandHold method.
 FLOAT_COMMANDS = ('torque_command', 'velocity_command', 'position_command')
 
-_LE_F64 = b'\x00\x01'           # the little-endian CDR encapsulation rclpy writes
-
 
 class Segment:
     """
@@ -123,7 +121,7 @@ class CommandPass:
     def _float_run(self, run, k):
         """Take a run of one Float64 drive command per step in one go (CommandHold.take_series)."""
         kind = run[0][1]
-        values = _float64s([data for _t, _kind, data in run])
+        values = C.decode_float64s([data for _t, _kind, data in run])
         n = len(run)
         dt_ns, t0 = self.sim.dt_ns, self.sim.t0
         times = t0 + (k + np.arange(n, dtype=np.int64)) * dt_ns
@@ -202,13 +200,3 @@ def _groups(events, ticks, n):
         else:
             groups.append((e, f, ticks_list[e], 0))
     return groups
-
-
-def _float64s(datas):
-    """Return the values of serialized std_msgs/Float64 messages as an array."""
-    blob = b''.join(datas)
-    if len(blob) == 12 * len(datas):
-        rows = np.frombuffer(blob, dtype=np.uint8).reshape(-1, 12)
-        if (rows[:, 0] == _LE_F64[0]).all() and (rows[:, 1] == _LE_F64[1]).all():
-            return rows[:, 4:].copy().view('<f8').ravel()
-    return np.array([C.decode_float64(d) for d in datas], dtype=float)

@@ -132,11 +132,7 @@ def _joint_states6(datas):
 
 def _float64s(datas):
     """Return (n, 1): the data of each std_msgs/Float64."""
-    rows = _rows_of(datas)
-    got = C.float64_template().columns(rows) if rows is not None else None
-    if got is not None:
-        return got
-    return np.array([[C.decode_float64(bytes(d))] for d in datas], dtype=float).reshape(-1, 1)
+    return C.decode_float64s(datas).reshape(-1, 1)
 
 
 def _wrench2(datas):

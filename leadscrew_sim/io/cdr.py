@@ -80,6 +80,25 @@ class CdrWriter:
         return offs
 
 
+def stamp_rows(stamps_ns):
+    """
+    Return the CDR bytes of builtin_interfaces/Time stamps: uint8 rows (n, 8), sec then nanosec.
+
+    Parameters
+    ----------
+    stamps_ns : array_like of int
+        The stamps [ns]; the seconds must fit in int32 (ValueError otherwise).
+
+    """
+    sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), NS)
+    if len(sec) and not (-2**31 <= sec.min() and sec.max() < 2**31):
+        raise ValueError('stamps must lie within the int32 range of seconds')
+    stamp = np.empty((len(sec), 2), dtype='<u4')
+    stamp[:, 0] = sec.astype('<i4').view('<u4')
+    stamp[:, 1] = nsec
+    return stamp.view(np.uint8).reshape(len(sec), 8)
+
+
 class Template:
     """A fixed-layout message: a byte template with the stamp and double offsets."""
 
@@ -114,13 +133,7 @@ class Template:
         out = np.empty((n, len(self.tmpl)), dtype=np.uint8)
         out[:] = np.frombuffer(self.tmpl, dtype=np.uint8)
         if self.stamp_off is not None:
-            sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), NS)
-            if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
-                raise ValueError('stamps must lie within the int32 range of seconds')
-            stamp = np.empty((n, 2), dtype='<u4')
-            stamp[:, 0] = sec.astype('<i4').view('<u4')
-            stamp[:, 1] = nsec
-            out[:, self.stamp_off:self.stamp_off + 8] = stamp.view(np.uint8)
+            out[:, self.stamp_off:self.stamp_off + 8] = stamp_rows(stamps_ns)
         for off, col in zip(self.offsets, columns):
             out[:, off:off + 8] = np.ascontiguousarray(col, dtype='<f8').view(
                 np.uint8).reshape(n, 8)
@@ -287,6 +300,25 @@ def decode_float64(data):
     if codec is None:
         raise DecodeError('not a CDR std_msgs/Float64')
     return codec.unpack_from(data, 4)[0]
+
+
+def decode_float64s(messages):
+    """
+    Return the ``data`` of many serialized std_msgs/Float64 as a float array (n,).
+
+    ``messages``: a list of bytes, or a uint8 array (n, 12). Little-endian CDR
+    (what rclpy writes) is read at once; anything else message by message
+    (:func:`decode_float64`).
+    """
+    if isinstance(messages, np.ndarray):
+        rows = messages if messages.ndim == 2 and messages.shape[1] == 12 else None
+    else:
+        blob = b''.join(messages)
+        rows = (np.frombuffer(blob, dtype=np.uint8).reshape(-1, 12)
+                if len(blob) == 12 * len(messages) else None)
+    if rows is not None and (rows[:, 0] == 0).all() and (rows[:, 1] == 1).all():
+        return rows[:, 4:].copy().view('<f8').ravel()
+    return np.array([decode_float64(bytes(m)) for m in messages], dtype=float)
 
 
 def decode_joint_state(data):

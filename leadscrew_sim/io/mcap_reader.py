@@ -214,29 +214,8 @@ def _read_chunks(fh, summary, want, msgs):
                 if want is None or c.topic in want}
     zstd = zstandard.ZstdDecompressor()
     unpack_head = _MESSAGE_HEAD.unpack_from
-    unpack_u64 = _U64.unpack_from
     for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-        fh.seek(index.chunk_start_offset)
-        raw = fh.read(index.chunk_length)
-        if len(raw) != index.chunk_length or raw[0] != 0x06:
-            raise ValueError(f'no chunk at offset {index.chunk_start_offset}')
-        _op, _length, _start, _end, size, crc = _CHUNK_HEAD.unpack_from(raw, 0)
-        at = _CHUNK_HEAD.size
-        n = _U32.unpack_from(raw, at)[0]
-        compression = raw[at + 4:at + 4 + n].decode()
-        at += 4 + n
-        n = unpack_u64(raw, at)[0]
-        packed = memoryview(raw)[at + 8:at + 8 + n]
-        if compression == 'zstd':
-            data = zstd.decompress(packed, max_output_size=size)
-        elif compression == 'lz4':
-            data = lz4.frame.decompress(packed)
-        elif compression == '':
-            data = bytes(packed)
-        else:
-            raise ValueError(f'unknown chunk compression {compression!r}')
-        if len(data) != size or (crc and zlib.crc32(data) != crc):
-            raise ValueError(f'chunk at offset {index.chunk_start_offset}: bad size or CRC')
+        data = _chunk_records(fh, index, zstd)
         pos, end = 0, len(data)
         while pos < end:
             op, length, channel, _seq, log_time = unpack_head(data, pos)

@@ -11,7 +11,7 @@ copying them after. The bytes are those of the layout's ``rows``.
 """
 import numpy as np
 
-NS = 1_000_000_000
+from .cdr import stamp_rows
 
 
 class EncodedRows:
@@ -45,13 +45,7 @@ class EncodedRows:
         self.n = n
         self.stamps = None
         if self.stamp_offsets:
-            sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), NS)
-            if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
-                raise ValueError('stamps must lie within the int32 range of seconds')
-            stamp = np.empty((n, 2), dtype='<u4')
-            stamp[:, 0] = sec.astype('<i4').view('<u4')
-            stamp[:, 1] = nsec
-            self.stamps = stamp.view(np.uint8).reshape(n, 8)
+            self.stamps = stamp_rows(stamps_ns)
         values = np.empty((n, len(columns)), dtype='<f8')
         for j, c in enumerate(columns):
             values[:, j] = c

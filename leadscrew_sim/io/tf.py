@@ -22,7 +22,7 @@ import struct
 
 import numpy as np
 
-from .cdr import CdrReader, CdrWriter, DecodeError, NS, split_stamp
+from .cdr import CdrReader, CdrWriter, DecodeError, NS, split_stamp, stamp_rows
 from .msgdefs import EMBEDDED, ros2msg_definition, share_directory
 from .record_fill import EncodedRows
 
@@ -221,16 +221,10 @@ class TfEncoder:
         """
         if len(columns) != self.n_values:
             raise ValueError(f'{self.n_values} columns needed, not {len(columns)}')
-        sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), NS)
-        n = len(sec)
-        if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
-            raise ValueError('stamps must lie within the int32 range of seconds')
+        stamp = stamp_rows(stamps_ns)
+        n = len(stamp)
         out = np.empty((n, len(self.tmpl)), dtype=np.uint8)
         out[:] = np.frombuffer(self.tmpl, dtype=np.uint8)
-        stamp = np.empty((n, 2), dtype='<u4')
-        stamp[:, 0] = sec.astype('<i4').view('<u4')
-        stamp[:, 1] = nsec
-        stamp = stamp.view(np.uint8).reshape(n, 8)
         values = np.empty((n, VALUES_PER_FRAME), dtype='<f8')
         for k, (s_off, v_off) in enumerate(zip(self.stamp_offsets, self.offsets)):
             out[:, s_off:s_off + 8] = stamp

@@ -13,6 +13,7 @@ The offline tools' fast paths give what the slow, independent ones give.
   drive the doubles the one-by-one path does.
 """
 import math
+import struct
 import subprocess
 
 from mcap.reader import make_reader
@@ -154,3 +155,17 @@ def test_take_series_equals_one_command_at_a_time(kind):
     assert np.array_equal(np.asarray(one), rows, equal_nan=True)
     assert (a.received, a.command_at(10**9)) == (b.received, b.command_at(10**9))
     assert a.take_series(kind, [1.0, math.nan], times[:2]) is None      # one by one then
+
+
+def test_bulk_float64_decoding_reads_what_rclpy_wrote():
+    """decode_float64s returns the doubles rclpy serialized, bit for bit, as arrays or lists."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64
+    values = _doubles(np.random.default_rng(11), 300)
+    messages = [serialize_message(Float64(data=float(v))) for v in values]
+    as_rows = np.frombuffer(b''.join(messages), dtype=np.uint8).reshape(-1, 12)
+    for given in (messages, as_rows):
+        got = C.decode_float64s(given)
+        assert np.array_equal(got.view(np.int64), values.view(np.int64))
+    big = [b'\x00\x00\x00\x00' + struct.pack('>d', v) for v in values[:5]]  # big-endian CDR
+    assert np.array_equal(C.decode_float64s(big).view(np.int64), values[:5].view(np.int64))
