@@ -54,7 +54,17 @@ def bare_blocks(seconds, rate, excite):
 
 
 def timed(argv):
-    """Return the wall time [s] of one in-process ``leadscrew_sim`` call (output hidden)."""
+    """
+    Return the wall time [s] of one in-process ``leadscrew_sim`` call (output hidden).
+
+    The output file (after ``-o``) is removed first, outside the timing, so every run
+    writes a new file, as the runs of a sweep do: rewriting a file in place costs the
+    file system the freeing of its old blocks and, at close, a forced writeback
+    (ext4 does that for a file truncated and written again).
+    """
+    path = argv[argv.index('-o') + 1]
+    if os.path.exists(path):
+        os.unlink(path)
     out = sys.stdout
     sys.stdout = open(os.devnull, 'w')
     try:

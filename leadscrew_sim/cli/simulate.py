@@ -25,6 +25,7 @@ from ..core.fields import public_name
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter, UPDATE_RECORD
+from ..io.record_fill import Stamps
 from ..io.tick_writer import Events, Stream, write_block
 
 HELP = 'run the model offline and write an MCAP file'
@@ -303,12 +304,13 @@ def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
         return
     enc, ids = w.enc, w.ids
     t_state = t_cmd + dt_ns
-    states = (enc.encoded('sensor', t_state, sensed) + enc.encoded('truth', t_state, cols)
-              + enc.encoded('analysis', t_state, _analysis(cols)))
+    stamps = Stamps(t_state)                  # one stamp per tick, on each message
+    states = (enc.encoded('sensor', stamps, sensed) + enc.encoded('truth', stamps, cols)
+              + enc.encoded('analysis', stamps, _analysis(cols)))
     st_rows = [r for _topic, r in states]
     st_chans = [ids[topic] for topic, _r in states]
     if w.tf is not None:
-        st_rows.append(w.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
+        st_rows.append(w.tf_rows(stamps, sensed['screw_angle'], sensed['nut_position']))
         st_chans.append(ids['/tf'])
     if clock:
         st_rows.append(enc.clock.rows(t_state, []))

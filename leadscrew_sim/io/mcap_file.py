@@ -264,10 +264,10 @@ class McapRecorder(Guarded):
             if self._writer is None or not len(payloads[0]):
                 return
             n = len(payloads[0])
-            seqs = [np.arange(self._channels[c]['count'], self._channels[c]['count'] + n)
-                    for c in channel_ids]
-            lo = min(int(np.min(t)) for t in log_times)
-            hi = max(int(np.max(t)) for t in log_times)
+            seqs = [self._channels[c]['count'] for c in channel_ids]
+            distinct = {id(t): t for t in log_times}.values()
+            lo = min(int(np.min(t)) for t in distinct)
+            hi = max(int(np.max(t)) for t in distinct)
             if lo < 0:
                 raise ValueError('message times must be >= 0 ns')
             try:

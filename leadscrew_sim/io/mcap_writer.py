@@ -35,7 +35,7 @@ import lz4.frame
 import numpy as np
 import zstandard
 
-from .record_fill import EncodedRows, fill
+from .record_fill import EncodedRows, RowLayout
 
 MAGIC = b'\x89MCAP0\r\n'
 
@@ -112,8 +112,9 @@ class McapWriter:
         self._chunk_indexes = []       # record bytes
         self._metadata_indexes = []
         self._chunk_count = 0
-        # the open chunk: its records as bytes-like parts, and their length
-        self._parts = []
+        # the open chunk: its records, in one buffer (handed whole to the writer when
+        # the chunk closes, then replaced), and their length
+        self._buf = self._new_buffer(self._chunk_size + (1 << 16))
         self._nbuf = 0
         self._index = {}               # channel id -> array of (log_time, offset) pairs
         self._c_start = self._c_end = None
@@ -153,9 +154,24 @@ class McapWriter:
         while self._tasks:
             self._tasks.popleft().result()
 
+    @staticmethod
+    def _new_buffer(size):
+        buf = np.empty(size, dtype=np.uint8)
+        return buf, memoryview(buf)
+
+    def _reserve(self, size):
+        """Return the open chunk's buffer with room for ``size`` more bytes."""
+        buf, view = self._buf
+        if self._nbuf + size > len(buf):
+            grown = self._new_buffer(max(2 * len(buf), self._nbuf + size))
+            grown[0][:self._nbuf] = buf[:self._nbuf]
+            self._buf = grown
+        return self._buf
+
     def _append(self, data):
-        self._parts.append(data)
-        self._nbuf += len(data)
+        n = len(data)
+        self._reserve(n)[1][self._nbuf:self._nbuf + n] = data
+        self._nbuf += n
 
     def register_schema(self, name, encoding, data):
         """Put a Schema record into the open chunk; return its id (1, 2, ...)."""
@@ -211,8 +227,7 @@ class McapWriter:
         off = self._nbuf
         rec = _MESSAGE.pack(OP_MESSAGE, 22 + len(data), channel_id, sequence, log_time,
                             publish_time) + data
-        self._parts.append(rec)
-        self._nbuf += len(rec)
+        self._append(rec)
         idx.append((log_time, off))
         self._counts[channel_id] += 1
         self._message_count += 1
@@ -232,7 +247,8 @@ class McapWriter:
         ``payloads``: one uint8 array of shape (n, L_j) per channel (fixed-length
         messages), or :class:`~.record_fill.EncodedRows` (encoded as written);
         ``log_times``: one int array (n,) per channel, also used as publish time;
-        ``sequences``: one int array (n,) per channel. Rows are never split across
+        ``sequences``: one int array (n,) per channel, or the first of n consecutive
+        sequence numbers. Rows are never split across
         chunks, and a chunk starts only at a row whose messages are all later
         than everything before it (a tick boundary when a row holds one log time).
         """
@@ -245,23 +261,29 @@ class McapWriter:
         n = len(payloads[0])
         if n == 0:
             return
-        shapes = []
         for p in payloads:
-            encoded = isinstance(p, EncodedRows)
-            if len(p) != n or not (encoded or p.ndim == 2):
+            if len(p) != n or not (isinstance(p, EncodedRows) or p.ndim == 2):
                 raise ValueError('payloads must be 2-D arrays or EncodedRows with one row per '
                                  'message')
-            shapes.append(p.template_bytes if encoded else p.shape[1])
-        row, starts, at = self._layout(channel_ids, shapes)
-        times = np.stack([np.asarray(t[:n], dtype=np.uint64) for t in log_times])
-        lt_bytes = times.astype('<u8').view(np.uint8).reshape(m, n, 8)
-        seq_bytes = (np.stack([np.asarray(q[:n]) for q in sequences]) & 0xFFFFFFFF).astype(
-            '<u4').view(np.uint8).reshape(m, n, 4)
-        row_min, row_max = times.min(axis=0), times.max(axis=0)
+        layout = self._layout(channel_ids, payloads)
+        at = layout.width
+        slots, distinct = {}, []        # each distinct log-time array once
+        for t in log_times:
+            if id(t) not in slots:
+                slots[id(t)] = len(distinct)
+                distinct.append(np.asarray(t[:n], dtype=np.int64))
+        sources = layout.sources(payloads, log_times, sequences, n)
+        if len(distinct) == 1:
+            row_min = row_max = distinct[0]
+        else:
+            stacked = np.stack(distinct)
+            row_min, row_max = stacked.min(axis=0), stacked.max(axis=0)
+        channel_slot = [slots[id(t)] for t in log_times]
         cut_ok = np.empty(n, dtype=bool)        # a chunk may start at row j
         cut_ok[0] = self._c_end is None or int(row_min[0]) > self._c_end
         cut_ok[1:] = row_min[1:] > np.maximum.accumulate(row_max)[:-1]
         cuts = np.flatnonzero(cut_ok)
+        starts = np.array(layout.starts, dtype=np.uint64)[:, None]
         k = 0
         while k < n:
             if ((self._close_due or self._nbuf >= self._chunk_size) and cut_ok[k]
@@ -273,77 +295,65 @@ class McapWriter:
             room = max(1, (self._chunk_size - self._nbuf) // at)
             nxt = np.searchsorted(cuts, k + room)       # the rows up to a cut past the room
             r = (int(cuts[nxt]) if nxt < len(cuts) else n) - k
-            block = np.empty((r, at), dtype=np.uint8)
-            block[:] = row                  # headers and templates; then what varies
             base = self._nbuf
+            block = self._reserve(r * at)[0][base:base + r * at].reshape(r, at)
+            layout.scatter(block, k, sources, payloads)
+            pairs = np.empty((m, r, 2), dtype=np.uint64)    # (log time, offset) per message
+            for u, t in enumerate(distinct):
+                pairs[[j for j in range(m) if channel_slot[j] == u], :, 0] = t[k:k + r]
+            pairs[:, :, 1] = starts + (base + at * np.arange(r, dtype=np.uint64))
             for j, cid in enumerate(channel_ids):
-                s = starts[j]
-                block[:, s + 11:s + 15] = seq_bytes[j, k:k + r]
-                block[:, s + 15:s + 23] = lt_bytes[j, k:k + r]
-                block[:, s + 23:s + 31] = lt_bytes[j, k:k + r]
-                p = payloads[j]
-                if isinstance(p, EncodedRows):
-                    fill(block, s + 31, p, k, r, template=False)
-                else:
-                    block[:, s + 31:s + 31 + p.shape[1]] = p[k:k + r]
-                pairs = np.empty((r, 2), dtype=np.uint64)
-                pairs[:, 0] = times[j, k:k + r]
-                pairs[:, 1] = base + s + at * np.arange(r, dtype=np.uint64)
-                self._index.setdefault(cid, []).append(pairs)
+                self._index.setdefault(cid, []).append(pairs[j])
                 self._counts[cid] += r
             lo, hi = int(row_min[k:k + r].min()), int(row_max[k:k + r].max())
             if self._c_start is None:
                 self._c_start, self._c_end = lo, hi
             else:
                 self._c_start, self._c_end = min(self._c_start, lo), max(self._c_end, hi)
-            self._parts.append(block)
             self._nbuf += block.nbytes
             self._message_count += r * m
             k += r
             if self._nbuf >= self._chunk_size:
                 self._close_due = True
 
-    def _layout(self, channel_ids, shapes):
-        """
-        Return (the bytes of a row with zero sequences and times, message starts, row length).
-
-        ``shapes``: per channel the payload length (copied per row) or the
-        template bytes of EncodedRows (part of the row).
-        """
-        key = (tuple(channel_ids), tuple(shapes))
+    def _layout(self, channel_ids, payloads):
+        """Return the :class:`~.record_fill.RowLayout` of rows of these channels and payloads."""
+        key = (tuple(channel_ids), tuple(
+            (p.template_bytes, p.stamp_offsets, p.offsets) if isinstance(p, EncodedRows)
+            else p.shape[1] for p in payloads))
         layout = self._layouts.get(key)
         if layout is None:
-            row, starts = bytearray(), []
-            for cid, shape in zip(channel_ids, shapes):
-                width = shape if isinstance(shape, int) else len(shape)
-                starts.append(len(row))
-                row += _MESSAGE.pack(OP_MESSAGE, 22 + width, cid, 0, 0, 0)
-                row += bytes(width) if isinstance(shape, int) else shape
-            layout = self._layouts[key] = (np.frombuffer(bytes(row), dtype=np.uint8), starts,
-                                           len(row))
+            layout = self._layouts[key] = RowLayout(
+                [_MESSAGE.pack(OP_MESSAGE, 22 + (p.width if isinstance(p, EncodedRows)
+                                                 else p.shape[1]), cid, 0, 0, 0)
+                 for cid, p in zip(channel_ids, payloads)],
+                [p if isinstance(p, EncodedRows) else p.shape[1] for p in payloads])
         return layout
 
     def close_chunk(self):
         """Compress and write the open chunk with its message indexes (no-op if empty)."""
         if self._c_start is None:       # no message: the records go out as they are
-            if self._parts:
-                self._write(b''.join(self._parts))
-                self._parts, self._nbuf = [], 0
+            if self._nbuf:
+                self._write(self._take())
             self._close_due = self._flush_due = False
             return
-        self._run(self._chunk_now, self._parts, self._nbuf, self._index, self._c_start,
-                  self._c_end)
-        self._parts, self._nbuf = [], 0
+        size = self._nbuf
+        self._run(self._chunk_now, self._take(), size, self._index, self._c_start, self._c_end)
         self._index = {}
         self._c_start = self._c_end = None
         self._close_due = self._flush_due = False
 
-    def _chunk_now(self, parts, size, index, c_start, c_end):
+    def _take(self):
+        """Return the open chunk's records (a view of its buffer) and start a new buffer."""
+        records = self._buf[1][:self._nbuf]
+        self._buf = self._new_buffer(len(self._buf[0]))
+        self._nbuf = 0
+        return records
+
+    def _chunk_now(self, records, size, index, c_start, c_end):
         """Write one chunk (compressed here) with its message indexes and index record."""
-        crc = 0
-        for part in parts:
-            crc = zlib.crc32(part, crc)
-        packed = _compress(self._compression, self._zstd, parts, size)
+        crc = zlib.crc32(records)
+        packed = _compress(self._compression, self._zstd, records, size)
         body = (struct.pack('<QQQI', c_start, c_end, size, crc)
                 + _string(self._compression) + struct.pack('<Q', len(packed)))
         start = self._pos
@@ -415,16 +425,15 @@ class McapWriter:
         self._finished = True
 
 
-def _compress(compression, zstd, parts, size):
-    """Return the chunk records ``parts`` (``size`` bytes in all) compressed, as bytes."""
+def _compress(compression, zstd, records, size):
+    """Return the chunk's records (a buffer of ``size`` bytes) compressed, or as they are."""
     if compression == 'zstd':
         z = zstd.compressobj(size=size)
-        return b''.join([z.compress(p) for p in parts] + [z.flush()])
-    data = b''.join(parts)
+        return z.compress(records) + z.flush()
     if compression == 'lz4':
-        return lz4.frame.compress(data, compression_level=0, block_linked=False,
+        return lz4.frame.compress(records, compression_level=0, block_linked=False,
                                   content_checksum=False)
-    return data
+    return records
 
 
 def _runs(pieces):

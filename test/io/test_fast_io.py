@@ -27,7 +27,8 @@ from leadscrew_sim.cli.sources import Held, make_torque_source
 from leadscrew_sim.core.commands import CommandHold, NutMap
 from leadscrew_sim.io import cdr as C
 from leadscrew_sim.io.mcap_reader import Recording
-from leadscrew_sim.io.record_fill import EncodedRows
+from leadscrew_sim.io import record_fill as RF
+from leadscrew_sim.io.record_fill import EncodedRows, Stamps
 from leadscrew_sim.io.tf import TfEncoder, tf_encoded
 
 MCAP_CLI = SHARED / 'mcap-cli' / 'mcap'
@@ -118,6 +119,36 @@ def test_encoded_rows_are_the_template_rows():
     enc = TfEncoder([('world', 'screw_link'), ('world', 'nut_link'), ('nut_link', 'x')])
     cols = [_doubles(rng, n) for _ in range(enc.n_values)]
     assert np.array_equal(tf_encoded(enc, stamps, cols).tobytes_rows(), enc.rows(stamps, cols))
+
+
+def test_compiled_scatter_writes_what_numpy_slicing_writes():
+    """The compiled scatter equals plain numpy slice copies, fields at any offset and row."""
+    rng = np.random.default_rng(11)
+    n, width, k, r = 300, 203, 17, 250
+    row = rng.integers(0, 256, width).astype(np.uint8)
+    src8 = rng.integers(0, 2**64, (5, n), dtype=np.uint64)
+    src4 = rng.integers(0, 2**32, (3, n), dtype=np.uint64).astype(np.uint32)
+    dst8 = np.array([0, 8, 51, 100, width - 8], dtype=np.uint64)     # both ends of a row
+    dst4 = np.array([4, 97, width - 12], dtype=np.uint64)
+    at8, at4 = np.array([4, 0, 2, 2, 1], dtype=np.uint64), np.array([2, 0, 1], dtype=np.uint64)
+    want = np.tile(row, (r, 1))
+    for u, o in zip(at8.tolist(), dst8.tolist()):
+        want[:, o:o + 8] = src8[u, k:k + r].astype('<u8').view(np.uint8).reshape(r, 8)
+    for u, o in zip(at4.tolist(), dst4.tolist()):
+        want[:, o:o + 4] = src4[u, k:k + r].astype('<u4').view(np.uint8).reshape(r, 4)
+    for fn in (RF.scatter, RF._scatter_numpy):
+        got = np.empty(r * width, dtype=np.uint8)
+        fn(got, width, r, row, k, src8, at8, dst8, src4, at4, dst4)
+        assert np.array_equal(got.reshape(r, width), want)
+
+
+def test_shared_stamps_encode_as_the_int_stamps():
+    """A block's Stamps object gives every message the bytes its int stamps give."""
+    stamps = np.array([0, 1, 999_999_999, 1_000_000_000, -1, -1_500_000_000, 2**31 * 10**9 - 1])
+    template = C.joint_state_template(['a'], 1, 1, 1)
+    cols = [np.arange(len(stamps), dtype=float) for _ in template.offsets]
+    assert np.array_equal(EncodedRows.of_template(template, Stamps(stamps), cols).tobytes_rows(),
+                          template.rows(stamps, cols))
 
 
 def test_vectorised_sources_hand_the_same_doubles():
