@@ -338,7 +338,13 @@ class McapWriter:
             self._close_due = self._flush_due = False
             return
         size = self._nbuf
-        self._run(self._chunk_now, self._take(), size, self._index, self._c_start, self._c_end)
+        indexes = []                    # (channel id, Message Index record), by channel id
+        for cid in sorted(self._index):
+            pairs = b''.join(np.asarray(p, dtype='<u8').tobytes()
+                             for p in _runs(self._index[cid]))
+            indexes.append((cid, _record(OP_MESSAGE_INDEX,
+                                         struct.pack('<HI', cid, len(pairs)) + pairs)))
+        self._run(self._chunk_now, self._take(), size, indexes, self._c_start, self._c_end)
         self._index = {}
         self._c_start = self._c_end = None
         self._close_due = self._flush_due = False
@@ -350,8 +356,14 @@ class McapWriter:
         self._nbuf = 0
         return records
 
-    def _chunk_now(self, records, size, index, c_start, c_end):
-        """Write one chunk (compressed here) with its message indexes and index record."""
+    def _chunk_now(self, records, size, indexes, c_start, c_end):
+        """
+        Write one chunk (compressed here) with its message indexes and index record.
+
+        Run by the writer thread, if any: the CRC, the compression and the writes
+        release the GIL, and the Python between them is kept short, since each
+        time this thread takes the GIL back the caller's thread waits.
+        """
         crc = zlib.crc32(records)
         packed = _compress(self._compression, self._zstd, records, size)
         body = (struct.pack('<QQQI', c_start, c_end, size, crc)
@@ -361,15 +373,11 @@ class McapWriter:
         self._write_now(packed)
         chunk_length = self._pos - start
         index_start = self._pos
-        offsets, parts = {}, []
-        at = index_start
-        for cid in sorted(index):
-            pairs = b''.join(np.asarray(p, dtype='<u8').tobytes() for p in _runs(index[cid]))
-            rec = _record(OP_MESSAGE_INDEX, struct.pack('<HI', cid, len(pairs)) + pairs)
+        offsets, at = {}, index_start
+        for cid, rec in indexes:
             offsets[cid] = at
             at += len(rec)
-            parts.append(rec)
-        self._write_now(b''.join(parts))
+        self._write_now(b''.join(rec for _cid, rec in indexes))
         self._chunk_indexes.append(_record(OP_CHUNK_INDEX, (
             struct.pack('<QQQQ', c_start, c_end, start, chunk_length)
             + _id_map(offsets) + struct.pack('<Q', self._pos - index_start)
