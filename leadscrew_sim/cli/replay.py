@@ -26,7 +26,7 @@ from ..io.tick_writer import Events, Stream, write_block
 
 #: Steps per part of a segment when writing: the model runs a part while the writer's
 #: thread compresses the one before.
-BLOCK_TICKS = 1000
+BLOCK_TICKS = 3000
 
 
 class Resim:

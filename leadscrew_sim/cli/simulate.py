@@ -32,7 +32,7 @@ HELP = 'run the model offline and write an MCAP file'
 
 #: Ticks per block: the model runs a block in one compiled call (open-loop
 #: inputs) and the block's messages are encoded and recorded at once.
-BLOCK_TICKS = 1000
+BLOCK_TICKS = 3000
 
 
 def add_arguments(p):

@@ -4,6 +4,7 @@ Reading a whole MCAP file: header, channels, metadata and messages, with one-lin
 Any ros2-profile file is read; :meth:`Recording.require_ours` tells a
 leadscrew_sim run file (:mod:`.run_file`) from others.
 """
+from concurrent.futures import ThreadPoolExecutor
 import struct
 import zlib
 
@@ -228,8 +229,17 @@ def _read_chunks(fh, summary, want, msgs):
 
 def _chunk_records(fh, index, zstd):
     """Return the decompressed records of the chunk of a chunk index, CRC checked."""
+    return _decoded(_chunk_bytes(fh, index), index, zstd)
+
+
+def _chunk_bytes(fh, index):
+    """Return the bytes of the Chunk record of a chunk index, as stored."""
     fh.seek(index.chunk_start_offset)
-    raw = fh.read(index.chunk_length)
+    return fh.read(index.chunk_length)
+
+
+def _decoded(raw, index, zstd):
+    """Return the decompressed records of a Chunk record's bytes, CRC checked."""
     if len(raw) != index.chunk_length or raw[0] != 0x06:
         raise ValueError(f'no chunk at offset {index.chunk_start_offset}')
     _op, _length, _start, _end, size, crc = _CHUNK_HEAD.unpack_from(raw, 0)
@@ -294,6 +304,38 @@ def _gather(buf, starts, width):
     return np.concatenate(parts)
 
 
+def _chunk_arrays(fh, number, index, records, want, all_times, all_keys, parts, count):
+    """
+    Add the messages of chunk ``number`` to the per-channel ``parts``; return the count.
+
+    ``records``: the future of its decompressed records (None: it holds no wanted
+    channel); ``all_times`` and
+    ``all_keys`` get the log time and file-order key of each of its messages.
+    """
+    pairs = _message_indexes(fh, index)
+    starts = {}
+    for cid, p in pairs.items():
+        all_times.append(p[:, 0].astype(np.int64))
+        all_keys.append((number << 40) + p[:, 1].astype(np.int64))
+        starts[cid] = count
+        count += len(p)
+    wanted = [cid for cid in pairs if cid in want and len(pairs[cid])]
+    if not wanted:
+        return count
+    buf = np.frombuffer(records.result(), dtype=np.uint8)
+    for cid in wanted:
+        off = pairs[cid][:, 1].astype(np.int64)
+        lengths = _gather(buf, off + 1, 8).view('<u8').ravel()        # record lengths
+        size = lengths - 22
+        if len(size) and (size == size[0]).all():
+            data = _gather(buf, off + 31, int(size[0]))
+        else:
+            data = [buf[o + 31:o + 9 + int(n)].tobytes() for o, n in zip(off, lengths)]
+        parts[cid].append((pairs[cid][:, 0].astype(np.int64), (number << 40) + off, data,
+                           starts[cid]))
+    return count
+
+
 def _topic_arrays(fh, summary, topics):
     """Read ``topics`` through the message indexes (see Recording.topic_arrays)."""
     indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
@@ -305,35 +347,32 @@ def _topic_arrays(fh, summary, topics):
     all_times, all_keys = [], []               # every message: log time, file order key
     parts = {cid: [] for cid in want}          # (times, keys, data, start in all) per chunk
     count = 0
-    for number, index in enumerate(indexes):
-        pairs = _message_indexes(fh, index)
-        starts = {}
-        for cid, p in pairs.items():
-            all_times.append(p[:, 0].astype(np.int64))
-            all_keys.append((number << 40) + p[:, 1].astype(np.int64))
-            starts[cid] = count
-            count += len(p)
-        wanted = [cid for cid in pairs if cid in want and len(pairs[cid])]
-        if not wanted:
-            continue
-        buf = np.frombuffer(_chunk_records(fh, index, zstd), dtype=np.uint8)
-        for cid in wanted:
-            off = pairs[cid][:, 1].astype(np.int64)
-            lengths = buf[off[:, None] + np.arange(1, 9)].copy().view('<u8').ravel()
-            size = lengths - 22
-            if len(size) and (size == size[0]).all():
-                data = _gather(buf, off + 31, int(size[0]))
-            else:
-                data = [buf[o + 31:o + 9 + int(n)].tobytes() for o, n in zip(off, lengths)]
-            parts[cid].append((pairs[cid][:, 0].astype(np.int64), (number << 40) + off, data,
-                               starts[cid]))
+    # a thread decompresses and checks the next chunks that hold a wanted channel (both
+    # release the GIL) while this one takes the messages of the current one apart
+    needed = [number for number, index in enumerate(indexes)
+              if any(cid in want for cid in index.message_index_offsets)]
+    with ThreadPoolExecutor(1) as pool:
+        futures = {}
+
+        def prefetch(upto):
+            while needed and needed[0] <= upto:
+                n = needed.pop(0)
+                futures[n] = pool.submit(_decoded, _chunk_bytes(fh, indexes[n]), indexes[n],
+                                         zstd)
+        for number, index in enumerate(indexes):
+            prefetch(number + 2)
+            count = _chunk_arrays(fh, number, index, futures.pop(number, None), want,
+                                  all_times, all_keys, parts, count)
     times = np.concatenate(all_times) if all_times else np.zeros(0, np.int64)
     keys = np.concatenate(all_keys) if all_keys else np.zeros(0, np.int64)
     order = np.lexsort((keys, times))             # log time, then file order
     sorted_times = times[order]
-    first = np.searchsorted(sorted_times, sorted_times, side='left')
+    at = np.arange(len(order))
+    new_time = np.ones(len(order), dtype=bool)      # the first message of its log time
+    new_time[1:] = sorted_times[1:] != sorted_times[:-1]
+    first = np.maximum.accumulate(np.where(new_time, at, 0))
     rank_all = np.empty(len(order), dtype=np.int64)
-    rank_all[order] = np.arange(len(order)) - first + 1
+    rank_all[order] = at - first + 1
     out = {topic: TopicArrays(np.zeros(0, np.int64), np.zeros(0, np.int64), [])
            for topic in topics}
     for cid, chunks in parts.items():
@@ -347,8 +386,10 @@ def _topic_arrays(fh, summary, topics):
         else:
             data = [m for c in chunks for m in (
                 TopicArrays(None, None, c[2]).messages())]
-        o = np.argsort(k, kind='stable')        # file order
-        data = data[o] if isinstance(data, np.ndarray) else [data[i] for i in o]
-        ranks = np.concatenate([rank_all[c[3]:c[3] + len(c[0])] for c in chunks])[o]
-        out[want[cid]] = TopicArrays(t[o], ranks, data)
+        ranks = np.concatenate([rank_all[c[3]:c[3] + len(c[0])] for c in chunks])
+        if not (k[1:] > k[:-1]).all():           # the index lists its messages out of order
+            o = np.argsort(k, kind='stable')    # file order
+            data = data[o] if isinstance(data, np.ndarray) else [data[i] for i in o]
+            t, ranks = t[o], ranks[o]
+        out[want[cid]] = TopicArrays(t, ranks, data)
     return out
