@@ -18,12 +18,12 @@ import time
 import numpy as np
 
 from . import identify_report as R
-from .args import CliError, load_params, NS, parse_sets
+from .args import CliError, NS
 from ..core import identification as ident
-from ..core.drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
+from ..core import fit_steps
+from ..core.drive import MODE_TORQUE
 from ..core.fit_data import REL_MAX, t_quantile
 from ..core.params import ParameterError, ScrewParams
-from ..core.presets import load_preset, preset_names
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
 
@@ -33,9 +33,6 @@ HELP = 'fit friction, backlash and other parameters to a recording'
 SETUP_FIELDS = tuple(n for n in ScrewParams.names()
                      if n.startswith(('encoder_', 'scale_', 'fault_'))) + (
     'linear_scale', 'velocity_filter_time', 'sensor_seed', 'state_delay', 'command_delay')
-
-#: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
-SIGMA_FLOOR = {'screw_angle': 1e-9, 'nut_position': 1e-12, 'motor_torque': 1e-9}
 
 
 def add_arguments(p):
@@ -63,35 +60,12 @@ def add_arguments(p):
     p.add_argument('--rate', type=float, help='step rate [Hz] of a foreign recording '
                    '(default 1000)')
     p.add_argument('--max-nfev', type=int, help='most re-simulations per fit stage')
+    p.add_argument('--restarts', choices=('auto', 'on', 'off'), default='auto',
+                   help='restart the re-simulation from the recorded state at each rest of '
+                   'a torque-mode recording and compare only the steps that state '
+                   'determines (auto: when one run from the start does not explain the '
+                   'recording; on: always; off: never)')
     p.add_argument('--quiet', '-q', action='store_true', help='do not print the report')
-
-
-def fit_names(text):
-    """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
-    if text is None:
-        return list(ident.DEFAULT_FIT)
-    names = [n.strip() for n in text.split(',') if n.strip()]
-    for n in names:
-        if n not in ident.FITTABLE:
-            raise CliError(f"--fit: '{n}' is not a fittable parameter (fittable: "
-                           f"{', '.join(ident.FITTABLE)})")
-    if not names or len(set(names)) != len(names):
-        raise CliError(f'--fit {text!r}: give distinct parameter names, comma separated')
-    return names
-
-
-def start_params(args, rec):
-    """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
-    phys, run_ov = parse_sets(args.set)
-    if run_ov:
-        raise CliError('identify --set accepts physics parameters only')
-    if args.preset or args.params:
-        params, label, _extra = load_params(args, phys)
-        return params, label
-    meta = rec.record(PARAMS_RECORD) or {}
-    label = meta.get('preset') if meta.get('preset') in preset_names() else 'tr12x3'
-    params = load_preset(label)
-    return (ScrewParams.from_dict(phys, base=params) if phys else params), label
 
 
 class Problem:
@@ -115,7 +89,7 @@ class Problem:
             from .replay import Resim
             src = Resim(rec)
             recorded = src.params
-            _check_geometry(start, recorded)
+            R.check_geometry(start, recorded)
         self.source, self.foreign, self.recorded = src, foreign, recorded
         self.dt = src.dt_ns / NS
         _segments, commands, _forces = src.inputs()
@@ -132,12 +106,19 @@ class Problem:
             ScrewParams.from_dict(dict(encoder_bias=ident.NULL_BIAS), base=recorded)
             if foreign else recorded)}
         data = src.measured() if foreign else R.measured_of_resim(src)
-        self.measurements, self.noise = _measurements(rec.path, data, recorded,
-                                                      self.torque_only, foreign)
+        self.measurements, self.noise = R.measurements(rec.path, data, recorded,
+                                                       self.torque_only, foreign)
         self.n = src.n_steps
         self.slow = 0
         if not (self.torque_only or foreign) and recorded.encoder_counts > 0:
-            self.slow = _drop_slow(self.measurements, commands, recorded, self.dt)
+            self.slow = fit_steps.drop_slow(self.measurements, commands, recorded, self.dt)
+        self.commands, self.forces = commands, _forces
+        self.anchoring = None
+        self.restartable = self.torque_only and not foreign and len(_segments) == 1 and \
+            not _segments[0].events
+        self.sigma0 = dict(self.measurements.sigma)
+        if args.restarts == 'on':
+            self.restart()
         self.evaluations = 0
         self.raised = []
         self.loop_noise = {}
@@ -176,11 +157,58 @@ class Problem:
             self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
                                 f'sensor noise ({loop:.3g})')
 
-    def replay(self, values, n=None):
-        """Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``."""
+    @property
+    def jac_steps(self):
+        """Return the relative steps of the intervals' Jacobian (wider with restarts)."""
+        return ident.JAC_STEPS if self.anchoring is None else fit_steps.JAC_STEPS
+
+    def restart(self):
+        """Restart the re-simulation at the recording's rests, if it has any; return whether."""
+        if self.restartable:
+            self.measurements.sigma = dict(self.sigma0)
+            self.raised = []
+            self.use_data(self.measurements.data, {})
+        return self.anchoring is not None
+
+    def use_data(self, data, values):
+        """
+        Compare with measured ``data`` (n_signals, n) from now on.
+
+        With restarts the rests are found in ``data`` and the steps compared are
+        those the rests determine at the physical ``values`` (:mod:`.fit_steps`).
+        """
+        meas = self.measurements
+        if not hasattr(self, 'base_mask'):
+            self.base_mask = meas.mask.copy()
+        meas.data, meas.mask = data, self.base_mask.copy()
+        self.anchoring = fit_steps.anchoring_of(meas, self.commands, self.dt)
+        if self.anchoring is not None:
+            self.predict(values)
+
+    def predict(self, values):
+        """Compare only the steps the rests determine at ``values``; return whether they moved."""
+        meas = self.measurements
+        overrides = dict(self.overrides, **values)
+        keep = self.anchoring.predictable(lambda: self.source.model(overrides), self.commands,
+                                          self.forces, [(meas.columns[s], meas.sigma[s])
+                                                        for s in meas.names])
+        mask = self.base_mask & keep[None, :meas.n]
+        changed = not np.array_equal(mask, meas.mask)
+        meas.mask = mask
+        return changed
+
+    def replay(self, values, n=None, plain=False):
+        """
+        Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``.
+
+        Restarted at the rests unless ``plain`` (one run from the start, as recorded).
+        """
         self.evaluations += 1
         overrides = dict(self.overrides, **values)
         try:
+            if self.anchoring is not None and not plain:
+                return self.anchoring.run(self.source.model(overrides), self.commands,
+                                          self.forces, n)
             if n is None or self.foreign:
                 return self.source.replay(overrides, n) if self.foreign else \
                     self.source.replay(overrides)
@@ -197,81 +225,14 @@ class Problem:
         except ParameterError as exc:
             raise CliError(f're-simulation with {values}: {exc}') from None
 
+    def compared(self, cols):
+        """Return the columns ``cols`` of a re-simulation at the steps some signal is compared."""
+        used = self.measurements.mask.any(axis=0)
+        return {k: np.asarray(v)[:len(used)][used[:len(v)]] for k, v in cols.items()}
+
     def residuals(self, values, n=None):
         """Return the weighted residuals of the first ``n`` steps (all: None)."""
         return self.measurements.residuals(self.replay(values, n), n)
-
-
-def _check_geometry(start, recorded):
-    """Refuse a starting set whose read-only geometry differs from the recording's."""
-    info = ScrewParams.field_info()
-    for name, (_t, _d, md) in info.items():
-        if md.get('read_only') and name not in ('linear_scale', 'initial_position') and \
-                getattr(start, name) != getattr(recorded, name):
-            raise CliError(f'the starting set has {name}={getattr(start, name)!r}, the '
-                           f'recording {getattr(recorded, name)!r}: choose the preset or '
-                           'parameter file of this axis (--preset, --params)')
-
-
-#: Commanded motor speed, in velocity quanta of the encoder through the drive period, below
-#: which (and above 0) for at least SLOW_DWELL [s] a step's measurements are left out.
-SLOW_QUANTA, SLOW_DWELL = 3.0, 0.1
-
-
-def _drop_slow(meas, commands, recorded, dt):
-    """
-    Leave out the steps of a slow commanded motion; return how many.
-
-    The drive's velocity is the difference quotient of the encoder's readings
-    over the drive period, so it moves in quanta of 2 pi / counts / period.
-    At a commanded speed of a few quanta the loop acts on a reading that
-    toggles between 0 and a quantum, and the recorded motion is the limit
-    cycle of that loop, which the noiseless re-simulation does not have: there
-    it pulls the friction toward values that mimic the cycle. Such steps
-    (commanded motor speed above 0 and below :data:`SLOW_QUANTA` quanta: the
-    velocity command, or the position command's rate, for at least
-    :data:`SLOW_DWELL`, long enough for the cycle to build; a speed change
-    passing through them is kept) carry no trustworthy information on the
-    friction; a parameter only they would show is then judged on the rest.
-    """
-    quantum = 2.0 * math.pi / recorded.encoder_counts * recorded.drive_rate
-    mode, pos, vel = (np.asarray(commands[:, i], dtype=float) for i in range(3))
-    held = np.isfinite(mode)
-    idx = np.maximum.accumulate(np.where(held, np.arange(len(mode)), 0))
-    mode, pos, vel = mode[idx], pos[idx], vel[idx]
-    rate = np.abs(np.gradient(pos, dt)) if len(pos) > 1 else np.zeros_like(pos)
-    speed = np.where(mode == MODE_VELOCITY, np.abs(vel),
-                     np.where(mode == MODE_POSITION, rate, 0.0))
-    slow = (speed > 1e-12) & (speed < SLOW_QUANTA * quantum)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2]):       # runs of slow steps [a, b)
-        if (b - a) * dt < SLOW_DWELL:
-            slow[a:b] = False
-    n = min(len(slow), meas.n)
-    meas.mask[:, :n] &= ~slow[None, :n]
-    meas.data = np.where(meas.mask, meas.data, 0.0)
-    return int(np.count_nonzero(slow[:n]))
-
-
-def _measurements(path, data, recorded, torque_only, foreign):
-    """Return (Measurements, {signal: (noise level, how it is known)}) of a recording."""
-    known = {} if foreign else ident.sensor_sigma(recorded)
-    signals, sigma, noise = {}, {}, {}
-    wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
-        ([] if torque_only else ['motor_torque'])
-    for name in wanted:
-        y = data[name]
-        if not np.isfinite(y).any():
-            continue
-        s = known.get(name)
-        how = 'sensor parameters'
-        if s is None:
-            s, how = ident.noise_estimate(y), 'estimated from the data'
-        s = max(s, SIGMA_FLOOR[name])
-        signals[name], sigma[name], noise[name] = y, s, (s, how)
-    if not signals:
-        raise CliError(f'{path}: no measured joint states to fit against')
-    return ident.Measurements(signals, sigma), noise
 
 
 def hints(cols):
@@ -308,37 +269,30 @@ def fit_recording(args):
     -------
     dict
         res (FitResult), params (the fitted ScrewParams), problem, label,
-        initial and final (the re-simulated columns), wall [s].
+        initial and final (the re-simulated columns), wall [s], single (the
+        rejected FitResult of one run from the start when restarts at the
+        rests replaced it, else None).
 
     """
-    names = fit_names(args.fit)
+    names = R.fit_names(args.fit)
     if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
         raise CliError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
     t_wall = time.perf_counter()
     rec = Recording(args.file)
     rec.require_ros2()
-    start, label = start_params(args, rec)
+    start, label = R.start_params(args, rec)
     problem = Problem(args, rec, start)
     try:
         coords = ident.coordinates(names, start)
     except ValueError as exc:
         raise CliError(f'--fit: {exc}') from None
-    initial = problem.replay({})
-    res = ident.fit(problem.residuals, coords, horizons=horizons(problem),
-                    hints=hints(initial), max_nfev=args.max_nfev)
-    fitted = dict(zip(res.names, res.values))
-    final = problem.replay(fitted)
-    problem.raised = problem.measurements.reweight(final)
-    if problem.raised:              # refit with those signals' weights at their rms
-        again = ScrewParams.from_dict(fitted, base=start)
-        res2 = ident.fit(problem.residuals, ident.coordinates(names, again, _bounds(coords)),
-                         hints=hints(initial), max_nfev=args.max_nfev)
-        res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
-        res = res2
-        fitted = dict(zip(res.names, res.values))
-        final = problem.replay(fitted)
+    res, initial, final, misfit = _fit(problem, coords, names, start, args)
+    single = None           # the fit in one run, when it missed and restarts replaced it
+    if misfit and args.restarts == 'auto' and problem.restart():
+        single = _reject(res, misfit)
+        res, initial, final, misfit = _fit(problem, coords, names, start, args)
+        res.nfev += single.nfev
     problem.bootstrap = {}
-    misfit = _misfit(problem, final)
     if misfit:
         res = _reject(res, misfit)
         final = problem.replay(dict(zip(res.names, res.values)))
@@ -350,7 +304,49 @@ def fit_recording(args):
                                                              res.verdicts) if vd.identified},
                                    base=start)
     return dict(res=res, params=params, problem=problem, label=label, initial=initial,
-                final=final, wall=time.perf_counter() - t_wall)
+                final=final, wall=time.perf_counter() - t_wall, single=single)
+
+
+#: Most refits after the steps compared moved with the fitted values (restarts at rests).
+PREDICT_ROUNDS = 3
+
+
+def _fit(problem, coords, names, start, args):
+    """
+    Fit ``problem`` from ``start``; return (FitResult, initial and final columns, misfit).
+
+    With restarts at rests the steps compared are those the rests determine at
+    the fitted values, and the fit is repeated while they change; a signal
+    the model explains only to an RMS above its noise is then weighted by
+    that RMS and the fit repeated. ``misfit``: why the fit does not explain
+    the recording ('' when it does).
+    """
+    initial = problem.replay({})
+    why = hints(problem.compared(initial))
+    res = ident.fit(problem.residuals, coords, horizons=horizons(problem), hints=why,
+                    max_nfev=args.max_nfev, profile=problem.anchoring is not None,
+                    jac_steps=problem.jac_steps)
+    fitted = dict(zip(res.names, res.values))
+    for _again in range(PREDICT_ROUNDS):    # the steps the rests determine at the fit
+        if problem.anchoring is None or not problem.predict(fitted):
+            break
+        res = _refit(problem, res, names, start, coords, args, why)
+        fitted = dict(zip(res.names, res.values))
+    final = problem.replay(fitted)
+    problem.raised = problem.measurements.reweight(final)
+    if problem.raised:              # refit with those signals' weights at their rms
+        res = _refit(problem, res, names, start, coords, args, why)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    return res, initial, final, _misfit(problem, final)
+
+
+def _refit(problem, res, names, start, coords, args, why):
+    """Return the fit of ``problem`` again from the values of ``res`` (its nfev added)."""
+    again = ScrewParams.from_dict(dict(zip(res.names, res.values)), base=start)
+    res2 = ident.fit(problem.residuals, ident.coordinates(names, again, _bounds(coords)),
+                     hints=why, max_nfev=args.max_nfev, jac_steps=problem.jac_steps)
+    res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
+    return res2
 
 
 def run(args):
@@ -417,14 +413,18 @@ def _bootstrap(problem, res, names, start, coords, args):
     fitted = dict(zip(res.names, res.values))
     sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
     meas = problem.measurements
-    recorded_data = meas.data
+    recorded = (meas.data, meas.mask, problem.anchoring)
     errors, nfev = [], res.nfev
     try:
         for j in range(BOOTSTRAP):
             sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
-            synthetic = problem.replay(dict(fitted, **sensors))
+            synthetic = problem.replay(dict(fitted, **sensors), plain=True)
             cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
-            meas.data = np.where(meas.mask, np.array([cols[s] for s in meas.names]), 0.0)
+            data = np.array([cols[s] for s in meas.names])
+            if problem.anchoring is None:
+                meas.data = np.where(meas.mask, data, 0.0)
+            else:           # its own rests, and the steps they determine
+                problem.use_data(data, fitted)
             away = {}
             for i, (c, v, vd) in enumerate(zip(coords, res.values, res.verdicts)):
                 sign = (1.0, -1.0)[(j + (i if j >= 2 else 0)) % 2]
@@ -432,11 +432,11 @@ def _bootstrap(problem, res, names, start, coords, args):
                 away[c.name] = min(c.upper, max(c.lower, v + sign * step))
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), _bounds(coords)),
-                max_nfev=args.max_nfev, rounds=1, scan=False)
+                max_nfev=args.max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
             errors.append(np.array(syn.values) - np.array(res.values))
             nfev += syn.nfev
     finally:
-        meas.data = recorded_data
+        meas.data, meas.mask, problem.anchoring = recorded
     s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
     tq = t_975(BOOTSTRAP)
     verdicts, lower, upper = [], [], []

@@ -1,5 +1,5 @@
 """
-The files of ``identify``: a foreign recording read in; the report, parameter file and PNG out.
+The files of ``identify``: its inputs and a foreign recording in; report, parameters, PNG out.
 
 A recording of another source (:class:`ForeignReplay`) is a JointState state
 topic and a command topic, mapped by the options; its steps and commands
@@ -7,12 +7,15 @@ go through the node's command rules as a leadscrew_sim recording's do.
 """
 import numpy as np
 
-from .args import CliError, NS
+from .args import CliError, load_params, NS, parse_sets
+from ..core import identification as ident
 from ..core import yamlio
 from ..core.commands import CommandHold, NutMap
 from ..core.identification import LEVEL
 from ..core.params import ScrewParams
+from ..core.presets import load_preset, preset_names
 from ..io import cdr as C
+from ..io.run_file import PARAMS_RECORD
 
 _UNITS = {n: md['unit'] for n, (_t, _d, md) in ScrewParams.field_info().items()}
 
@@ -45,6 +48,11 @@ def report(path, out):
         lines.append(f'left out: {problem.slow} steps of a commanded speed below '
                      'the encoder\'s velocity quantum through the drive period times 3 (the '
                      'drive\'s limit cycle there is not in the re-simulation)')
+    if getattr(problem, 'anchoring', None) is not None:
+        used = int(np.count_nonzero(meas.mask.any(axis=0)))
+        lines.append(f'restarted at {len(problem.anchoring.rests)} rests from the recorded '
+                     f'state; compared: {used} of {problem.n} steps, those the recorded '
+                     'states determine to within the noise')
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '
@@ -296,3 +304,69 @@ def measured_of_resim(sim):
     states = [(t, d) for t, tp, d in sim.rec.messages if tp == topic] if topic else []
     return _decode_states(states, sim.t0, sim.dt_ns, sim.n_steps,
                           sim.prefix + 'screw_joint', sim.prefix + 'nut_joint')
+
+
+# The inputs -------------------------------------------------------------------------
+
+#: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
+SIGMA_FLOOR = {'screw_angle': 1e-9, 'nut_position': 1e-12, 'motor_torque': 1e-9}
+
+
+def fit_names(text):
+    """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
+    if text is None:
+        return list(ident.DEFAULT_FIT)
+    names = [n.strip() for n in text.split(',') if n.strip()]
+    for n in names:
+        if n not in ident.FITTABLE:
+            raise CliError(f"--fit: '{n}' is not a fittable parameter (fittable: "
+                           f"{', '.join(ident.FITTABLE)})")
+    if not names or len(set(names)) != len(names):
+        raise CliError(f'--fit {text!r}: give distinct parameter names, comma separated')
+    return names
+
+
+def start_params(args, rec):
+    """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
+    phys, run_ov = parse_sets(args.set)
+    if run_ov:
+        raise CliError('identify --set accepts physics parameters only')
+    if args.preset or args.params:
+        params, label, _extra = load_params(args, phys)
+        return params, label
+    meta = rec.record(PARAMS_RECORD) or {}
+    label = meta.get('preset') if meta.get('preset') in preset_names() else 'tr12x3'
+    params = load_preset(label)
+    return (ScrewParams.from_dict(phys, base=params) if phys else params), label
+
+
+def check_geometry(start, recorded):
+    """Refuse a starting set whose read-only geometry differs from the recording's."""
+    info = ScrewParams.field_info()
+    for name, (_t, _d, md) in info.items():
+        if md.get('read_only') and name not in ('linear_scale', 'initial_position') and \
+                getattr(start, name) != getattr(recorded, name):
+            raise CliError(f'the starting set has {name}={getattr(start, name)!r}, the '
+                           f'recording {getattr(recorded, name)!r}: choose the preset or '
+                           'parameter file of this axis (--preset, --params)')
+
+
+def measurements(path, data, recorded, torque_only, foreign):
+    """Return (Measurements, {signal: (noise level, how it is known)}) of a recording."""
+    known = {} if foreign else ident.sensor_sigma(recorded)
+    signals, sigma, noise = {}, {}, {}
+    wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
+        ([] if torque_only else ['motor_torque'])
+    for name in wanted:
+        y = data[name]
+        if not np.isfinite(y).any():
+            continue
+        s = known.get(name)
+        how = 'sensor parameters'
+        if s is None:
+            s, how = ident.noise_estimate(y), 'estimated from the data'
+        s = max(s, SIGMA_FLOOR[name])
+        signals[name], sigma[name], noise[name] = y, s, (s, how)
+    if not signals:
+        raise CliError(f'{path}: no measured joint states to fit against')
+    return ident.Measurements(signals, sigma), noise

@@ -27,6 +27,7 @@ import numpy as np
 
 from .params import ScrewParams
 from . import fit_data as V
+from .fit_search import profiled, restart_fit, scanned, spread, SCAN_ABOVE
 from .fit_data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
                        noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                        sensor_sigma, SIGNALS)
@@ -233,7 +234,8 @@ ANCHOR = 1.0
 
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
-        hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True):
+        hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, profile=False,
+        jac_steps=JAC_STEPS):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 
@@ -274,6 +276,11 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
     scan : bool
         Scan coordinate by coordinate out of a stage that leaves a residual
         above twice the noise (False: local fits only).
+    profile : bool
+        Also scan each log-scaled parameter's profile after the whole run's
+        stage (:func:`profiled`).
+    jac_steps : tuple of float
+        Relative steps in z of the intervals' Jacobian (:func:`.fit_data.interval_jacobian`).
 
     """
     from scipy.optimize import least_squares
@@ -299,7 +306,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         stages = (horizons or []) + [None] if _round == 0 else [None]
         for stage, h in enumerate(stages):
             fun.horizon = h
-            starts = [z] + (_spread(z, active, lo, hi) if _round == 0 and h is not None else [])
+            starts = [z] + (spread(z, active, lo, hi) if _round == 0 and h is not None else [])
             best = None
             step = diff_step * (COARSE if h is not None else 1.0)
             target = fun if h is None else _Anchored(fun, z)
@@ -311,16 +318,19 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
                     best = res
             res, z_stage = best, z
             if h is None:
-                res, _z = _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, len(active))
+                res, _z = restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev,
+                                      len(active))
             if _round == 0 and scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
-                res = _scanned(target, res, [z_stage, res.x], lo, hi, step, ftol, xtol,
-                               max_nfev, active, restart=h is None)
+                res = scanned(target, res, [z_stage, res.x], lo, hi, step, ftol, xtol,
+                              max_nfev, active, restart=h is None)
+            if h is None and profile and _round == 0:
+                res = profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, active)
             z = res.x
         fun.horizon = None
         r = fun(z)
         nfev += fun.nfev
         message = res.message
-        jac = V.interval_jacobian(fun, z, r, JAC_STEPS)
+        jac = V.interval_jacobian(fun, z, r, jac_steps)
         nfev_after = fun.nfev
         cov, lag = sandwich(jac, r, fun.shape)
         verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),
@@ -334,104 +344,6 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         active = [dataclasses.replace(c, initial=c.to_value(zi))
                   for c, zi, v in zip(active, z, verdicts) if v.identified]
     return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints)
-
-
-#: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
-RESTARTS, RESTART_GAIN = 3, 1e-4
-
-
-def _restart(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
-    """
-    Restart the optimiser where it stopped while that still lowers the cost.
-
-    On a piecewise smooth cost the trust region collapses at a jump and the
-    optimiser stops on ``xtol`` short of the minimum; a restart begins with a
-    fresh trust region and a Jacobian of another step (alternately 3 and 1/3
-    times ``diff_step``), which steps over the jump.
-    """
-    from scipy.optimize import least_squares
-    for k in range(RESTARTS):
-        step = diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
-        new = least_squares(fun, res.x, bounds=(lo, hi), method='trf', x_scale=1.0,
-                            diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                            max_nfev=max_nfev or 50 * p)
-        if not new.cost < res.cost * (1.0 - RESTART_GAIN):
-            if new.cost < res.cost:
-                res = new
-            break
-        res = new
-    return res, res.x
-
-
-#: RMS / noise level of a signal above which the whole run's local fit is taken for a wrong
-#: minimum and a coordinate scan looks for a better basin (a fit of the right one leaves 1).
-SCAN_ABOVE = 2.0
-
-#: Half-widths of the scan's grids in z (linear: a fraction of the start; log: a factor
-#: e^w), each grid of SCAN_POINTS points around the best point of the last, and its sweeps.
-SCAN_WIDTHS, SCAN_POINTS, SCAN_SWEEPS = ((0.5, 1.4), (0.05, 0.14), (0.005, 0.014)), 11, 2
-
-
-def _scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, restart):
-    """
-    Return the result of a coordinate scan and a local fit from it, if it lowers the cost.
-
-    A re-simulation of stick-slip or of a drive loop over coarse sensors is so
-    rough in its parameters (a breakaway a step earlier changes the rest of
-    the run) that the basin of the optimum is only a few per cent wide, while
-    outside it the cost still falls toward it on the large scale. A local fit
-    from 20 % off then stops on a ridge. A derivative-free search follows the
-    large-scale trend: each coordinate in turn is set to the best of a grid
-    around its current value (the others held), the grid narrowed by 10
-    twice; the sweeps start from the starting point and from the local fit,
-    and the local fit is repeated from the best point found.
-    """
-    from scipy.optimize import least_squares
-    best_z, best_c = np.array(res.x), float(np.sum(res.fun ** 2))
-    for zs in starts:
-        z = np.array(zs, dtype=float)
-        c = float(np.sum(fun(z) ** 2))
-        for wide in SCAN_WIDTHS:
-            for _sweep in range(SCAN_SWEEPS):
-                for i, co in enumerate(coords):
-                    w = wide[1] if co.log else wide[0] * max(abs(z[i]), 1e-3)
-                    for zi in np.linspace(z[i] - w, z[i] + w, SCAN_POINTS):
-                        zt = np.array(z)
-                        zt[i] = min(hi[i], max(lo[i], zi))
-                        ct = float(np.sum(fun(zt) ** 2))
-                        if ct < c:
-                            z, c = zt, ct
-        if c < best_c:
-            best_z, best_c = z, c
-    if best_c >= 2.0 * res.cost:
-        return res
-    new = least_squares(fun, best_z, bounds=(lo, hi), method='trf', x_scale=1.0,
-                        diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                        max_nfev=max_nfev or 50 * len(coords))
-    if restart:
-        new, _z = _restart(fun, new, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
-    return new if new.cost < res.cost else res
-
-
-#: Factor by which the first stage also starts each log-scaled parameter lower and higher.
-SPREAD = 4.0
-
-
-def _spread(z, coords, lo, hi):
-    """
-    Return the extra starting points of the first stage: each log parameter / and x SPREAD.
-
-    A parameter that spans decades (the Stribeck velocity) has the least certain start,
-    and a start on the wrong side of the data's speeds leaves it without sensitivity.
-    """
-    out = []
-    for i, c in enumerate(coords):
-        if c.log:
-            for step in (-math.log(SPREAD), math.log(SPREAD)):
-                zs = np.array(z, dtype=float)
-                zs[i] = min(hi[i], max(lo[i], zs[i] + step))
-                out.append(zs)
-    return out
 
 
 def _dof(r, p):

@@ -1,0 +1,226 @@
+"""
+The searches of :func:`.identification.fit` beyond one local least-squares fit.
+
+A re-simulation is piecewise smooth in its parameters, and the cost of a
+long run from a distant start has local minima and ridges: the optimiser is
+restarted where it stopped on a jump (:func:`restart_fit`), a stage that leaves
+a residual above twice the noise is scanned coordinate by coordinate
+(:func:`scanned`), the first stage also starts from each log-scaled
+parameter moved by a factor (:func:`spread`), and a log-scaled parameter
+far weaker than the others can be followed along its profile
+(:func:`profiled`).
+"""
+import math
+
+import numpy as np
+
+
+#: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
+RESTARTS, RESTART_GAIN = 3, 1e-4
+
+
+def restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
+    """
+    Restart the optimiser where it stopped while that still lowers the cost.
+
+    On a piecewise smooth cost the trust region collapses at a jump and the
+    optimiser stops on ``xtol`` short of the minimum; a restart begins with a
+    fresh trust region and a Jacobian of another step (alternately 3 and 1/3
+    times ``diff_step``), which steps over the jump. Returns (result, its z).
+
+    Parameters
+    ----------
+    fun : callable
+        z -> the flattened weighted residuals.
+    res : scipy.optimize.OptimizeResult
+        The fit to improve on.
+    lo, hi : numpy.ndarray
+        Bounds of z.
+    diff_step, ftol, xtol : float
+        Options of ``least_squares`` (see :func:`.identification.fit`).
+    max_nfev : int or None
+        Most evaluations of a local fit (None: 50 per parameter).
+    p : int
+        The number of parameters.
+
+    """
+    from scipy.optimize import least_squares
+    for k in range(RESTARTS):
+        step = diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
+        new = least_squares(fun, res.x, bounds=(lo, hi), method='trf', x_scale=1.0,
+                            diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                            max_nfev=max_nfev or 50 * p)
+        if not new.cost < res.cost * (1.0 - RESTART_GAIN):
+            if new.cost < res.cost:
+                res = new
+            break
+        res = new
+    return res, res.x
+
+
+#: RMS / noise level of a signal above which the whole run's local fit is taken for a wrong
+#: minimum and a coordinate scan looks for a better basin (a fit of the right one leaves 1).
+SCAN_ABOVE = 2.0
+
+#: Half-widths of the scan's grids in z (linear: a fraction of the start; log: a factor
+#: e^w), each grid of SCAN_POINTS points around the best point of the last, and its sweeps.
+SCAN_WIDTHS, SCAN_POINTS, SCAN_SWEEPS = ((0.5, 1.4), (0.05, 0.14), (0.005, 0.014)), 11, 2
+
+
+def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, restart):
+    """
+    Return the result of a coordinate scan and a local fit from it, if it lowers the cost.
+
+    A re-simulation of stick-slip or of a drive loop over coarse sensors is so
+    rough in its parameters (a breakaway a step earlier changes the rest of
+    the run) that the basin of the optimum is only a few per cent wide, while
+    outside it the cost still falls toward it on the large scale. A local fit
+    from 20 % off then stops on a ridge. A derivative-free search follows the
+    large-scale trend: each coordinate in turn is set to the best of a grid
+    around its current value (the others held), the grid narrowed by 10
+    twice; the sweeps start from the starting point and from the local fit,
+    and the local fit is repeated from the best point found.
+
+    Parameters
+    ----------
+    fun : callable
+        z -> the flattened weighted residuals.
+    res : scipy.optimize.OptimizeResult
+        The fit to improve on.
+    lo, hi : numpy.ndarray
+        Bounds of z.
+    diff_step, ftol, xtol : float
+        Options of ``least_squares`` (see :func:`.identification.fit`).
+    max_nfev : int or None
+        Most evaluations of a local fit (None: 50 per parameter).
+    starts : list of numpy.ndarray
+        The points the sweeps start from.
+    coords : list of Coordinate
+        The fitted parameters.
+    restart : bool
+        Restart the last local fit as :func:`restart_fit` does.
+
+    """
+    from scipy.optimize import least_squares
+    best_z, best_c = np.array(res.x), float(np.sum(res.fun ** 2))
+    for zs in starts:
+        z = np.array(zs, dtype=float)
+        c = float(np.sum(fun(z) ** 2))
+        for wide in SCAN_WIDTHS:
+            for _sweep in range(SCAN_SWEEPS):
+                for i, co in enumerate(coords):
+                    w = wide[1] if co.log else wide[0] * max(abs(z[i]), 1e-3)
+                    for zi in np.linspace(z[i] - w, z[i] + w, SCAN_POINTS):
+                        zt = np.array(z)
+                        zt[i] = min(hi[i], max(lo[i], zi))
+                        ct = float(np.sum(fun(zt) ** 2))
+                        if ct < c:
+                            z, c = zt, ct
+        if c < best_c:
+            best_z, best_c = z, c
+    if best_c >= 2.0 * res.cost:
+        return res
+    new = least_squares(fun, best_z, bounds=(lo, hi), method='trf', x_scale=1.0,
+                        diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                        max_nfev=max_nfev or 50 * len(coords))
+    if restart:
+        new, _z = restart_fit(fun, new, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+    return new if new.cost < res.cost else res
+
+
+#: Half-widths in ln units and points of the profile grids of a log-scaled parameter.
+PROFILE_GRIDS = ((math.log(4.0), 13), (0.12, 5))
+
+
+def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
+    """
+    Return the local fit from the best point of each log parameter's profile, if it is better.
+
+    Where a few parameters are fixed a thousand times more sharply than the
+    others (stick-slip slides: the friction coefficients against the Stribeck
+    velocity), the local fit stops in the narrow valley of the sharp ones,
+    and neither its steps nor a coordinate scan follow the valley along the
+    weak one. The profile does: for each grid value of a log parameter (a
+    factor 4 either way, as the first stage's spread, then +-12 % around the
+    best) the others are
+    fitted locally, and the whole fit is repeated from the best point.
+
+    Parameters
+    ----------
+    fun : callable
+        z -> the flattened weighted residuals.
+    res : scipy.optimize.OptimizeResult
+        The fit to improve on.
+    lo, hi : numpy.ndarray
+        Bounds of z.
+    diff_step, ftol, xtol : float
+        Options of ``least_squares`` (see :func:`.identification.fit`).
+    max_nfev : int or None
+        Most evaluations of a local fit (None: 50 per parameter).
+    coords : list of Coordinate
+        The fitted parameters.
+
+    """
+    from scipy.optimize import least_squares
+    best = res
+    for i, c in enumerate(coords):
+        if not c.log or len(coords) < 2:
+            continue
+        others = [j for j in range(len(coords)) if j != i]
+        centre = best.x[i]
+        for width, points in PROFILE_GRIDS:
+            found = None
+            for zi in np.linspace(centre - width, centre + width, points):
+                zi = min(hi[i], max(lo[i], zi))
+
+                def reduced(zo, zi=zi):
+                    z = np.empty(len(coords))
+                    z[i], z[others] = zi, zo
+                    return fun(z)
+
+                r = least_squares(reduced, best.x[others], bounds=(lo[others], hi[others]),
+                                  method='trf', x_scale=1.0, diff_step=diff_step, ftol=ftol,
+                                  xtol=xtol, gtol=1e-10, max_nfev=max_nfev or 50 * len(coords))
+                if found is None or r.cost < found[0]:
+                    found = (r.cost, zi, r.x)
+            centre = found[1]
+        if found[0] < best.cost:
+            z = np.empty(len(coords))
+            z[i], z[others] = found[1], found[2]
+            new = least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
+                                diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                                max_nfev=max_nfev or 50 * len(coords))
+            if new.cost < best.cost:
+                best = new
+    return best
+
+
+#: Factor by which the first stage also starts each log-scaled parameter lower and higher.
+SPREAD = 4.0
+
+
+def spread(z, coords, lo, hi):
+    """
+    Return the extra starting points of the first stage: each log parameter / and x SPREAD.
+
+    A parameter that spans decades (the Stribeck velocity) has the least certain start,
+    and a start on the wrong side of the data's speeds leaves it without sensitivity.
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        The starting point.
+    coords : list of Coordinate
+        The fitted parameters.
+    lo, hi : numpy.ndarray
+        Bounds of z.
+
+    """
+    out = []
+    for i, c in enumerate(coords):
+        if c.log:
+            for step in (-math.log(SPREAD), math.log(SPREAD)):
+                zs = np.array(z, dtype=float)
+                zs[i] = min(hi[i], max(lo[i], zs[i] + step))
+                out.append(zs)
+    return out
