@@ -20,6 +20,7 @@ from ..core import layout as L
 from ..core.delivery import StateDelivery
 from ..core.params import ParameterError, ScrewParams
 from ..io import messages as M, topics as T
+from ..io.record_fill import Stamps
 from ..io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
                            run_setting, UPDATE_RECORD)
 from ..io.tick_writer import Events, Stream, write_block
@@ -86,8 +87,13 @@ class Resim:
         order += self._read_records()
         if order:                   # by log time, then rank (stable: file order)
             times, ranks = zip(*order)
-            index = np.lexsort((np.array(ranks, dtype=float), np.array(times, dtype=np.int64)))
-            self.events = [self.events[i] for i in index.tolist()]
+            times = np.array(times, dtype=np.int64)
+            ranks = np.array(ranks, dtype=float)
+            same = times[1:] == times[:-1]
+            later = (times[1:] > times[:-1]) | (same & (ranks[1:] >= ranks[:-1]))
+            if not later.all():     # one topic alone comes in order already
+                index = np.lexsort((ranks, times))
+                self.events = [self.events[i] for i in index.tolist()]
         last_state = max((int(ks[-1]) for ks, _d in self.states.values() if len(ks)),
                          default=-1)
         if last_state < 0:
@@ -401,14 +407,15 @@ def _block_states(sim, seg, cols, pieces, enc, writer, new):
     if writer is None:
         return
     t_state = sim.t0 + (np.arange(k0, k1, dtype=np.int64) + 1) * sim.dt_ns
+    stamps = Stamps(t_state)                  # one stamp per tick, on each message
     analysis = {name: np.asarray(cols[col], dtype=float)
                 for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
-    states = (enc.encoded('sensor', t_state, sensed) + enc.encoded('truth', t_state, cols)
-              + enc.encoded('analysis', t_state, analysis))
+    states = (enc.encoded('sensor', stamps, sensed) + enc.encoded('truth', stamps, cols)
+              + enc.encoded('analysis', stamps, analysis))
     rows = [r for _topic, r in states]
     chans = [writer.ids[topic] for topic, _r in states]
     if writer.tf is not None:
-        rows.append(writer.tf_rows(t_state, sensed['screw_angle'], sensed['nut_position']))
+        rows.append(writer.tf_rows(stamps, sensed['screw_angle'], sensed['nut_position']))
         chans.append(writer.ids['/tf'])
     write_block(writer.rec, pieces, chans, rows, t_state)
 

@@ -81,9 +81,12 @@ def _compared(sim, topic, decode, values, has):
 
 
 def _pairs(ks, recorded, values, has):
+    """Return the recorded and the new values of the steps ``ks`` both have."""
     ks_in = ks < len(has)
     ok = np.zeros(len(ks), dtype=bool)
     ok[ks_in] = has[ks[ks_in]]
+    if ok.all() and len(ks) and ks[-1] - ks[0] == len(ks) - 1 and (np.diff(ks) == 1).all():
+        return recorded, values[ks[0]:ks[-1] + 1]       # every step of a stretch: views
     return recorded[ok], values[ks[ok]]
 
 
