@@ -191,15 +191,16 @@ def _run(args):
         w.write_description(sim.t0)
         progress = Progress(sim.n_steps, 'resim', args.quiet)
         new, _model = sim.run(w, progress=progress)
+        compared = compare(sim, new)        # while the writer thread ends the file
     finally:
         w.close()
-    _report(args, sim, out, new)
+    _report(args, sim, out, new, compared)
     return 0
 
 
-def _report(args, sim, out, new):
-    """Print the summary and the difference table of a resim run."""
-    rows, bit_differences = compare(sim, new)
+def _report(args, sim, out, new, compared):
+    """Print the summary and the difference table (``compare``'s result) of a resim run."""
+    rows, bit_differences = compared
     print(f'resim of {args.file}: {sim.n_steps} steps at dt {sim.dt_ns} ns '
           f'(clock_mode {sim.clock_mode or "?"}), overrides: '
           f'{" ".join(args.set or []) or "none"}; wrote {out}')
