@@ -309,6 +309,14 @@ def test_torque_pulses_of_stick_slip_restart_at_their_rests(tmp_path_factory):
     assert all(n < 999 for n in later) and sum(later) > 0, later
     from leadscrew_sim.cli.identify_report import report
     assert 'restarted at 3 rests' in report('run.mcap', out)
+    # restarted from the recorded rests, the true parameters explain the steps compared to
+    # the sensors' noise: RMS / sigma of ~1100 samples of (nearly white) noise is 1 +- 0.03;
+    # a wrong restart state (a rest's slide or ringing off by a part in 1e5) gives hundreds
+    true, _sets = truth('stick_slip')
+    cols = problem.replay({n: getattr(true, n) for n in FIT.split(',')})
+    meas = problem.measurements
+    ratio = meas.rms(cols) / np.array([meas.sigma[s] for s in meas.names])
+    assert np.all((0.85 < ratio) & (ratio < 1.15)), ratio
 
 
 #: Nut speeds [m/s] of a ladder with two rungs under 3 velocity quanta of the 17-bit encoder

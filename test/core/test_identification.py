@@ -129,3 +129,72 @@ def test_unknown_parameter_is_refused():
     """A name outside FITTABLE raises ValueError naming it."""
     with pytest.raises(ValueError, match="'lead_angle' is not a fittable"):
         ident.coordinates(['lead_angle'], ScrewParams())
+
+
+# Restarts at rests (core/fit_steps) ------------------------------------------------------
+
+def test_ringing_recovers_a_damped_oscillation():
+    """A free oscillation in noise: centre, displacement and rate at its end, and the noise."""
+    from leadscrew_sim.core import fit_steps
+    rng = np.random.default_rng(3)
+    dt, n, sigma = 1e-3, 150, 2e-5
+    c, a, b, s, w = -12.5, 0.08, -0.03, -2.0, 447.0
+    t = (np.arange(n) - (n - 1)) * dt
+    y = c + np.exp(s * t) * (a * np.cos(w * t) + b * np.sin(w * t)) + rng.normal(0, sigma, n)
+    *fitted, rms = fit_steps.ringing(y, dt)
+    rest = fit_steps.Rest(0, n - 1, *fitted)
+    # the least-squares errors of N samples of noise sigma: the centre sigma / sqrt(N), an
+    # oscillation's amplitude sigma sqrt(2 / N), its rate w times that; 4 standard errors
+    se = sigma * math.sqrt(2.0 / n)
+    assert abs(rest.centre - c) <= 4 * sigma / math.sqrt(n)
+    h = dt / 15
+    u0, rate = rest.motor(h)
+    assert abs(u0 - a) <= 4 * se
+    exact = (a - math.exp(-s * h) * (a * math.cos(w * h) - b * math.sin(w * h))) / h
+    assert abs(rate - exact) <= 4 * w * se
+    # the RMS of the residuals is the noise's: chi with N - 5 degrees of freedom, sd 6 %
+    assert 0.8 * sigma <= rms <= 1.2 * sigma
+    # no oscillation (a rigid coupling): a constant
+    assert fit_steps.ringing(np.full(n, 3.0), dt)[1:5] == (0.0, 0.0, 0.0, 0.0)
+
+
+def test_rests_are_the_still_ends_of_long_stretches_of_zero_torque():
+    """Counting: two rests of four zero-torque stretches (one too short, one with a moving nut)."""
+    from leadscrew_sim.core import fit_steps
+    from leadscrew_sim.core.drive import MODE_TORQUE
+    dt, n = 1e-3, 5000
+    effort = np.ones(n)
+    zero = [(1000, 1600), (2000, 2100), (3000, 3600), (4000, 4600)]  # [a, b): the 2nd short
+    for a, b in zero:
+        effort[a:b] = 0.0
+    commands = np.column_stack([np.full(n, MODE_TORQUE), np.zeros(n), np.zeros(n), effort])
+    rng = np.random.default_rng(5)
+    angle = 1.0 + rng.normal(0, 1e-5, n)
+    position = 0.01 + rng.normal(0, 5e-7, n)
+    position[4000:4600] += np.linspace(0, 2e-5, 600)      # the nut creeps: 40 noise levels
+    rests = fit_steps.find_rests(commands, angle, 1e-5, dt, position, 5e-7)
+    assert [(r.a, r.k) for r in rests] == [(1600 - 150, 1599), (3600 - 150, 3599)]
+    assert all(abs(r.centre - 1.0) < 4e-5 / math.sqrt(150) for r in rests)
+
+
+def test_anchoring_moves_screw_and_nut_by_one_lead_and_keeps_the_gap():
+    """The state after anchoring: a translation of the thread (gap kept), at rest, ringing set."""
+    from leadscrew_sim.core import fit_steps, layout as L
+    p = load_preset('stick_slip')
+    m = LeadScrewModel(p, 1e-3)
+    m.run(np.concatenate([np.linspace(0, 1.2, 200), np.zeros(300)]))
+    s0 = m.state.copy()
+    hs, ratio = p.hand_sign, p.lead / (2 * math.pi)
+    rest = fit_steps.Rest(0, 499, centre=-40.0, amp_a=0.05, amp_b=0.0, s=0.0, w=447.0)
+    fit_steps.anchor(m.state, rest, 0.5, hs, ratio, m.dt / m.nsub, rigid=False)
+    s1 = m.state
+    q = hs * (-40.0 - 0.5)                         # the centre in the model's frame, q sense
+    assert s1[L.S_Q] == q
+    # the nut follows the screw by the lead: the thread's gap x - r q is kept (round-off)
+    for x in (L.S_XA, L.S_XB, L.S_XS):
+        assert abs((s1[x] - ratio * s1[L.S_Q]) - (s0[x] - ratio * s0[L.S_Q])) < 1e-12
+    assert s1[L.S_DQ] == s1[L.S_VA] == s1[L.S_VB] == s1[L.S_VS] == 0.0
+    # the motor at the ringing's displacement (cos 0 = 1) and its rate over the last substep
+    h = m.dt / m.nsub
+    assert abs(s1[L.S_QM] - (q + hs * 0.05)) < 1e-12
+    assert abs(s1[L.S_WM] - hs * 0.05 * (1 - math.cos(447.0 * h)) / h) < 1e-9
