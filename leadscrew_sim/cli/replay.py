@@ -118,10 +118,13 @@ class Resim:
                 order.extend(zip(times, a.ranks.tolist()))
             elif rel in T.STATE_TOPICS and len(a.log_times):
                 k, r = np.divmod(a.log_times - self.t0, self.dt_ns)
-                ok = np.flatnonzero((r == 0) & (k > 0))
-                k = k[ok]
-                o = ok[np.argsort(k, kind='stable')]
-                k = k[np.argsort(k, kind='stable')]
+                on_tick = (r == 0) & (k > 0)
+                if on_tick.all() and (k[1:] > k[:-1]).all():   # one per tick, in order
+                    self.states[rel] = (k, a.data)
+                    continue
+                ok = np.flatnonzero(on_tick)
+                by_tick = np.argsort(k[ok], kind='stable')
+                o, k = ok[by_tick], k[ok][by_tick]
                 last = np.append(k[1:] != k[:-1], True)     # one state per tick: the last
                 keep = o[last]
                 data = a.data[keep] if isinstance(a.data, np.ndarray) else [

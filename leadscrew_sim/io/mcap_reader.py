@@ -287,6 +287,11 @@ def _gather(buf, starts, width):
     Records written as rows lie at one stride; each run of one stride is one
     strided view, and the views are copied out together.
     """
+    return np.concatenate(_strided_views(buf, starts, width))
+
+
+def _strided_views(buf, starts, width):
+    """Return the rows ``buf[s:s + width]`` of the increasing ``starts`` as strided views."""
     n = len(starts)
     step = np.diff(starts)
     changes = np.flatnonzero(step[1:] != step[:-1]) + 1     # where a new stride begins
@@ -301,7 +306,7 @@ def _gather(buf, starts, width):
             buf[int(starts[i]):], shape=(j - i + 1, width), strides=(int(step[i]), 1),
             writeable=False))
         i = j + 1
-    return np.concatenate(parts)
+    return parts
 
 
 def _chunk_arrays(fh, number, index, records, want, all_times, all_keys, parts, count):
@@ -327,8 +332,8 @@ def _chunk_arrays(fh, number, index, records, want, all_times, all_keys, parts, 
         off = pairs[cid][:, 1].astype(np.int64)
         lengths = _gather(buf, off + 1, 8).view('<u8').ravel()        # record lengths
         size = lengths - 22
-        if len(size) and (size == size[0]).all():
-            data = _gather(buf, off + 31, int(size[0]))
+        if len(size) and (size == size[0]).all():     # views, copied out once at the end
+            data = _strided_views(buf, off + 31, int(size[0]))
         else:
             data = [buf[o + 31:o + 9 + int(n)].tobytes() for o, n in zip(off, lengths)]
         parts[cid].append((pairs[cid][:, 0].astype(np.int64), (number << 40) + off, data,
@@ -380,12 +385,14 @@ def _topic_arrays(fh, summary, topics):
             continue
         t = np.concatenate([c[0] for c in chunks])
         k = np.concatenate([c[1] for c in chunks])
-        if all(isinstance(c[2], np.ndarray) for c in chunks) and len(
-                {c[2].shape[1] for c in chunks}) == 1:
-            data = np.concatenate([c[2] for c in chunks])
+        views = all(isinstance(c[2], list) and c[2] and isinstance(c[2][0], np.ndarray)
+                    for c in chunks)
+        if views and len({v.shape[1] for c in chunks for v in c[2]}) == 1:
+            data = np.concatenate([v for c in chunks for v in c[2]])
         else:
             data = [m for c in chunks for m in (
-                TopicArrays(None, None, c[2]).messages())]
+                c[2] if not (c[2] and isinstance(c[2][0], np.ndarray)) else
+                TopicArrays(None, None, np.concatenate(c[2])).messages())]
         ranks = np.concatenate([rank_all[c[3]:c[3] + len(c[0])] for c in chunks])
         if not (k[1:] > k[:-1]).all():           # the index lists its messages out of order
             o = np.argsort(k, kind='stable')    # file order
