@@ -163,12 +163,21 @@ class Problem:
         return ident.JAC_STEPS if self.anchoring is None else fit_steps.JAC_STEPS
 
     def restart(self):
-        """Restart the re-simulation at the recording's rests, if it has any; return whether."""
-        if self.restartable:
-            self.measurements.sigma = dict(self.sigma0)
-            self.raised = []
-            self.use_data(self.measurements.data, {})
-        return self.anchoring is not None
+        """
+        Restart the re-simulation at the recording's rests, if it has any; return whether.
+
+        The signals' weights return to their noise levels (a fit in one run may
+        have raised them).
+        """
+        meas = self.measurements
+        raised = meas.sigma
+        meas.sigma = dict(self.sigma0)
+        if not self.restartable or fit_steps.anchoring_of(meas, self.commands, self.dt) is None:
+            meas.sigma = raised
+            return False
+        self.raised = []
+        self.use_data(meas.data, {})
+        return True
 
     def use_data(self, data, values):
         """

@@ -50,9 +50,11 @@ def report(path, out):
                      'drive\'s limit cycle there is not in the re-simulation)')
     if getattr(problem, 'anchoring', None) is not None:
         used = int(np.count_nonzero(meas.mask.any(axis=0)))
+        why = ' (one run from the start did not explain the recording)' \
+            if out.get('single') is not None else ''
         lines.append(f'restarted at {len(problem.anchoring.rests)} rests from the recorded '
-                     f'state; compared: {used} of {problem.n} steps, those the recorded '
-                     'states determine to within the noise')
+                     f'state{why}; compared: {used} of {problem.n} steps, those the '
+                     'recorded states determine to within the noise')
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '
