@@ -9,12 +9,12 @@ the model then runs each stretch between parameter updates, resets and
 fault clearings in one compiled call. ``resim``, ``info``, ``plot`` and
 ``identify`` re-simulate through :class:`Resim`.
 """
-import itertools
 import math
 
 import numpy as np
 
 from .args import CliError, NS
+from .replay_events import RecordedEvents
 from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
 from ..core import layout as L
 from ..core.delivery import StateDelivery
@@ -81,41 +81,31 @@ class Resim:
         self.joint_command_mode = run_setting(meta, 'joint_command_mode', 'auto')
         self.clock_mode = run_setting(meta, 'clock_mode', '')
         self.topics = {rel: rec.role_topic(rel) for rel in T.COMMAND_TOPICS + T.STATE_TOPICS}
-        self.events = []            # (log_time [ns], kind, payload) in log-time order
+        self.events = RecordedEvents()  # (log_time [ns], kind, payload) in log-time order
         self.states = {}            # rel -> (step indices, messages) of the recorded states
-        order = self._read_messages()
-        order += self._read_records()
-        if order:                   # by log time, then rank (stable: file order)
-            times, ranks = zip(*order)
-            times = np.array(times, dtype=np.int64)
-            ranks = np.array(ranks, dtype=float)
-            same = times[1:] == times[:-1]
-            later = (times[1:] > times[:-1]) | (same & (ranks[1:] >= ranks[:-1]))
-            if not later.all():     # one topic alone comes in order already
-                index = np.lexsort((ranks, times))
-                self.events = [self.events[i] for i in index.tolist()]
+        self._read_messages()
+        self._read_records()
+        self.events.sort()          # by log time, then rank (stable: file order)
         last_state = max((int(ks[-1]) for ks, _d in self.states.values() if len(ks)),
                          default=-1)
         if last_state < 0:
-            last_cmd = max([(e[0] - self.t0) // self.dt_ns for e in self.events] or [-1])
+            times = self.events.times
+            last_cmd = int((times.max() - self.t0) // self.dt_ns) if len(times) else -1
             last_state = last_cmd + 1
         self.n_steps = max(0, last_state)
         self.rejected = 0
         self._inputs = None
 
     def _read_messages(self):
-        """Collect the commands and the recorded states; return the commands' sort keys."""
+        """Collect the commands (with their ranks in the file) and the recorded states."""
         topics = {rel: t for rel, t in self.topics.items() if t}
         arrays = self.rec.topic_arrays(list(topics.values()))
         if arrays is None:                  # no message index: the message list
             return self._read_message_list(topics)
-        order = []                  # (log time, rank among the messages of that log time)
         for rel, topic in topics.items():
             a = arrays[topic]
-            if rel in T.COMMAND_TOPICS:
-                times = a.log_times.tolist()
-                self.events.extend(zip(times, itertools.repeat(rel), a.messages()))
-                order.extend(zip(times, a.ranks.tolist()))
+            if rel in T.COMMAND_TOPICS:     # ranked among the messages of their log time
+                self.events.add_topic(rel, a.log_times, a.ranks, a.data)
             elif rel in T.STATE_TOPICS and len(a.log_times):
                 k, r = np.divmod(a.log_times - self.t0, self.dt_ns)
                 on_tick = (r == 0) & (k > 0)
@@ -130,14 +120,13 @@ class Resim:
                 data = a.data[keep] if isinstance(a.data, np.ndarray) else [
                     a.data[i] for i in keep]
                 self.states[rel] = (k[last], data)
-        return order
 
     def _read_message_list(self, topics):
         """Collect commands and states from ``rec.messages`` (a file without message indexes)."""
         if not self.rec.messages:
             self.rec.load(list(topics.values()))
         by_topic = {t: rel for rel, t in topics.items()}
-        order = []
+        items, ranks = [], []
         states = {}
         same_t, rank = None, 0
         for log_time, topic, data in self.rec.messages:
@@ -146,8 +135,8 @@ class Resim:
             rank += 1
             rel = by_topic.get(topic)
             if rel in T.COMMAND_TOPICS:
-                self.events.append((log_time, rel, data))
-                order.append((log_time, rank))
+                items.append((log_time, rel, data))
+                ranks.append(rank)
             elif rel in T.STATE_TOPICS:
                 k, r = divmod(log_time - self.t0, self.dt_ns)
                 if r == 0 and k > 0:
@@ -155,11 +144,11 @@ class Resim:
         for rel, by_k in states.items():
             ks = sorted(by_k)
             self.states[rel] = (np.array(ks, dtype=np.int64), [by_k[k] for k in ks])
-        return order
+        self.events.add_items(items, ranks)
 
     def _read_records(self):
-        """Collect the parameter updates and resets; return their sort keys."""
-        order = []
+        """Collect the parameter updates, resets and fault clearings, with their sort keys."""
+        items, keys = [], []
         for name, data in self.rec.metadata:
             if name in MODEL_EVENTS and 'log_time_ns' in data:
                 try:
@@ -168,10 +157,10 @@ class Resim:
                 except ValueError as exc:
                     raise CliError(f'{self.rec.path}: bad "{name}" metadata record: '
                                    f'{exc}') from None
-                self.events.append((log_time, name, data))
+                items.append((log_time, name, data))
                 # after the first `before` messages of its log time; else after all
-                order.append((log_time, before + 0.5 if before >= 0 else math.inf))
-        return order
+                keys.append(before + 0.5 if before >= 0 else math.inf)
+        self.events.add_items(items, keys)
 
     # ----------------------------------------------------------------- inputs
     def inputs(self):
@@ -320,11 +309,14 @@ class Resim:
         for e0, e1, k, run in seg.groups:
             i = k - seg.k0
             if run:
-                datas = [d for _t, _kind, d in events[e0:e1]]
-                if len({len(d) for d in datas}) == 1:
-                    rows = np.frombuffer(b''.join(datas), dtype=np.uint8).reshape(run, -1)
-                    times = np.array([t for t, _kind, _d in events[e0:e1]], dtype=np.int64)
-                    pieces.append(Stream(i, i + run, ids[events[e0][1]], rows, times))
+                rows = events.rows(e0, e1)          # the recorded rows, as read
+                if rows is None:
+                    datas = [d for _t, _kind, d in events[e0:e1]]
+                    if len({len(d) for d in datas}) == 1:
+                        rows = np.frombuffer(b''.join(datas), dtype=np.uint8).reshape(run, -1)
+                if rows is not None:
+                    pieces.append(Stream(i, i + run, ids[events.kind(e0)], rows,
+                                         events.times[e0:e1]))
                     continue
                 pieces.extend(Events(i + j, [(ids[kind], d, t)])
                               for j, (t, kind, d) in enumerate(events[e0:e1]))

@@ -57,14 +57,14 @@ class CommandPass:
         """Return (segments, commands, forces) as :meth:`Resim.inputs` describes them."""
         sim = self.sim
         events, n = sim.events, sim.n_steps
-        times = np.array([e[0] for e in events], dtype=np.int64)
+        times = events.times
         ticks = np.maximum(0, -((sim.t0 - times) // sim.dt_ns))     # core.commands.first_step
         segments = [Segment(0, [])]
         sim.rejected = 0
         for e0, e1, k, run in _groups(events, ticks, n):
             self._fill(k)
             if run and self._quiet():
-                self._float_run(events[e0:e1], k)
+                self._float_run(events, e0, e1, k)
                 segments[-1].groups.append((e0, e1, k, run))
                 continue
             if run:                 # timeouts, delay or loss: step by step
@@ -118,16 +118,18 @@ class CommandPass:
         self.forces[k] = self.hold.force
         self.k = k + 1
 
-    def _float_run(self, run, k):
+    def _float_run(self, events, e0, e1, k):
         """Take a run of one Float64 drive command per step in one go (CommandHold.take_series)."""
-        kind = run[0][1]
-        values = C.decode_float64s([data for _t, _kind, data in run])
-        n = len(run)
+        kind = events.kind(e0)
+        recorded = events.rows(e0, e1)
+        values = C.decode_float64s(recorded if recorded is not None else
+                                   [data for _t, _kind, data in events[e0:e1]])
+        n = e1 - e0
         dt_ns, t0 = self.sim.dt_ns, self.sim.t0
         times = t0 + (k + np.arange(n, dtype=np.int64)) * dt_ns
         rows = self.hold.take_series(kind, values, times)
         if rows is None:                # the hold rejects some: step by step
-            for i, (_t, kind, data) in enumerate(run):
+            for i, (_t, kind, data) in enumerate(events[e0:e1]):
                 self._apply(kind, data, int(times[i]))
                 self._step(k + i)
             return
@@ -179,8 +181,7 @@ def _groups(events, ticks, n):
     ticks = np.asarray(ticks[:ne], dtype=np.int64)
     if not ne:
         return []
-    code = {kind: i for i, kind in enumerate(FLOAT_COMMANDS)}
-    kinds = np.array([code.get(e[1], -1) for e in events[:ne]])
+    kinds = events.codes({kind: i for i, kind in enumerate(FLOAT_COMMANDS)}, ne)
     same = ticks[1:] == ticks[:-1]
     alone = np.ones(ne, dtype=bool)             # the only event of its step
     alone[1:] &= ~same
