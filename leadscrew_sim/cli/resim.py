@@ -95,14 +95,16 @@ def _table_rows(rows, topic, labels, got):
     if got is None:
         return 0
     old, now = got
-    d = old - now
-    d = np.where(d == d, np.abs(d), math.inf)
+    d = np.abs(old - now)
+    d[np.isnan(d)] = math.inf                   # a NaN on one side only, or on both
     n = len(d)
     bits = int(np.count_nonzero(old.view(np.int64) != now.view(np.int64)))
+    if n:
+        largest = d.max(axis=0)
+        rms = np.sqrt(np.einsum('ij,ij->j', d, d) / n)
     for j, label in enumerate(labels):
-        col = d[:, j] if n else d[:0, 0]
-        rows.append((topic, label, float(col.max()) if n else 0.0,
-                     math.sqrt(float(np.sum(col * col)) / n) if n else float('nan'), n))
+        rows.append((topic, label, float(largest[j]) if n else 0.0,
+                     float(rms[j]) if n else float('nan'), n))
     return bits
 
 
