@@ -128,8 +128,9 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
     return new if new.cost < res.cost else res
 
 
-#: Half-widths in ln units and points of the profile grids of a log-scaled parameter.
-PROFILE_GRIDS = ((math.log(4.0), 13), (0.12, 5))
+#: Half-widths in ln units and points of the profile grids of a log-scaled parameter, and
+#: the tolerances of the fits along it (the whole fit from its best point refines).
+PROFILE_GRIDS, PROFILE_TOL = ((math.log(4.0), 13), (0.12, 5)), 1e-5
 
 
 def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
@@ -179,8 +180,9 @@ def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
                     return fun(z)
 
                 r = least_squares(reduced, best.x[others], bounds=(lo[others], hi[others]),
-                                  method='trf', x_scale=1.0, diff_step=diff_step, ftol=ftol,
-                                  xtol=xtol, gtol=1e-10, max_nfev=max_nfev or 50 * len(coords))
+                                  method='trf', x_scale=1.0, diff_step=diff_step,
+                                  ftol=PROFILE_TOL, xtol=PROFILE_TOL, gtol=1e-10,
+                                  max_nfev=max_nfev or 50 * len(coords))
                 if found is None or r.cost < found[0]:
                     found = (r.cost, zi, r.x)
             centre = found[1]
