@@ -168,14 +168,19 @@ def plot(path, problem, initial, final):
         m = meas.mask[i]
         unit = meas.units[name]
         ax, axr = axes[i]
-        ax.plot(t[m], meas.data[i][m], '.', ms=1.5, color='0.4', label='recorded')
+
+        def compared(y, m=m):
+            """Return ``y`` with gaps (NaN) where the signal is not compared."""
+            return np.where(m, y, np.nan)
+
+        ax.plot(t, compared(meas.data[i]), '.', ms=1.5, color='0.4', label='recorded')
         # the simulated signals with the offset the fit removed, on the recorded one's level
-        ax.plot(t[m], meas.data[i][m] + d0[i][m], lw=1.0, label='initial')
-        ax.plot(t[m], meas.data[i][m] + d1[i][m], lw=1.0, label='fitted')
+        ax.plot(t, compared(meas.data[i] + d0[i]), lw=1.0, label='initial')
+        ax.plot(t, compared(meas.data[i] + d1[i]), lw=1.0, label='fitted')
         ax.set_ylabel(f'{name} [{unit}]')
         ax.legend(loc='best', fontsize=8)
-        axr.plot(t[m], d0[i][m], lw=0.6, alpha=0.6, label='initial')
-        axr.plot(t[m], d1[i][m], lw=0.6, label='fitted')
+        axr.plot(t, compared(d0[i]), lw=0.6, alpha=0.6, label='initial')
+        axr.plot(t, compared(d1[i]), lw=0.6, label='fitted')
         sigma = problem.noise[name][0]
         axr.axhline(sigma, color='k', lw=0.5, ls='--')
         axr.axhline(-sigma, color='k', lw=0.5, ls='--', label='+-noise sigma')
