@@ -109,9 +109,10 @@ class RecordedEvents:
 
     def rows(self, e0, e1):
         """
-        Return the payloads of events ``e0 .. e1 - 1`` as rows (n, L), or None.
+        Return the payloads of events ``e0 .. e1 - 1`` as a uint8 array (n, L), or None.
 
-        Rows when they are consecutive messages of one topic read as rows, else None.
+        An array when they are consecutive messages of one topic read as fixed-length
+        messages, else None.
         """
         if e1 <= e0:
             return None
