@@ -2,6 +2,7 @@
 Benchmark ``leadscrew_sim identify``: a 4-parameter fit of 20 s, 1 kHz recordings, and coverage.
 
 Run: .venv/bin/python bench/bench_identify.py [--seconds 20] [--seeds 6] [--profiles P,..]
+[--fit default]
 
 Part 1 (speed): ``simulate`` records tr12x3 with its friction and backlash
 moved 20-30 % from the preset (the fit's start), a 17-bit encoder with half a
@@ -12,7 +13,10 @@ and in torque mode a triangular torque pulse past breakaway every second,
 raising the nut while it is below its start and lowering it otherwise (so it
 never reaches an end stop). ``identify`` fits
 mu_s, mu_k, stribeck_velocity and backlash of each; the wall time of the whole
-command (reading, fitting, bootstrap) and the re-simulations are printed.
+command (reading, fitting, bootstrap) and the re-simulations are printed. With
+``--fit default`` it fits identify's default set instead (no ``--fit``), of
+recordings with the truth of ``test/cli/test_identify_defaults.py`` (viscous
+thread friction, bearing and guide friction added).
 
 Part 2 (coverage): the 4 s velocity case of ``test/cli/test_identify.py``
 recorded with ``--seeds`` different sensor seeds; for each fitted parameter
@@ -39,6 +43,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / 'test'))
 sys.path.insert(0, str(HERE.parent / 'test' / 'cli'))
 import test_identify as T  # noqa: E402  (the test's cases)
+import test_identify_defaults as D  # noqa: E402  (the default set's truth)
 
 FIT = 'mu_s,mu_k,stribeck_velocity,backlash'
 
@@ -49,9 +54,8 @@ def _write(path, times, values):
             fh.write(f'{float(t)!r},{float(v)!r}\n')
 
 
-def long_inputs(tmp, mode, seconds):
-    """Write the inputs of a ``seconds`` long tr12x3 run in ``mode``; return simulate's options."""
-    p, _sets = T.truth('tr12x3')
+def long_inputs(tmp, mode, seconds, p):
+    """Write the inputs of a ``seconds`` long run of ``p`` in ``mode``; return the options."""
     if mode == 'torque':        # a pulse per second, up while below the start, else down
         pos, neg = T._breakaway(p)
         u = np.arange(1000) * 1e-3 / 0.4
@@ -79,28 +83,28 @@ def long_inputs(tmp, mode, seconds):
     return ['--velocity-csv', str(tmp / 'velocity.csv'), '--force-csv', str(tmp / 'force.csv')]
 
 
-def _args(rec):
+def _args(rec, fit=FIT):
     main = importlib.import_module('leadscrew_sim.cli.main')
-    return main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3',
-                                           '--fit', FIT])
+    return main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3'] +
+                                          (['--fit', fit] if fit != 'default' else []))
 
 
-def speed(seconds):
-    """Print the wall time of 4-parameter fits of ``seconds`` long recordings."""
-    _p, sets = T.truth('tr12x3')
-    for mode in ('velocity', 'torque'):
+def speed(seconds, fit=FIT, modes=('velocity', 'torque')):
+    """Print the wall time of fits of ``fit`` ('default': identify's set) of long recordings."""
+    true, sets = D.truth() if fit == 'default' else T.truth('tr12x3')
+    for mode in modes:
         with tempfile.TemporaryDirectory() as d:
             tmp = Path(d)
             rec = tmp / 'run.mcap'
-            cli.main(['simulate', '--preset', 'tr12x3', *long_inputs(tmp, mode, seconds),
+            cli.main(['simulate', '--preset', 'tr12x3', *long_inputs(tmp, mode, seconds, true),
                       '--duration', str(seconds), *sets, '-q', '-o', str(rec)])
             t0 = time.perf_counter()
-            out = fit_recording(_args(rec))
+            out = fit_recording(_args(rec, fit))
             wall = time.perf_counter() - t0
         res, problem = out['res'], out['problem']
-        true = T.truth('tr12x3')[0]
         errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
                          f'{"" if vd.identified else " (not identifiable)"}'
+                         f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
                          for n, v, vd in zip(res.names, res.values, res.verdicts))
         print(f'{mode:>8} mode, {seconds:g} s at 1 kHz: {wall:.1f} s wall, '
               f'{problem.evaluations} re-simulations; errors: {errs}')
@@ -207,9 +211,12 @@ def main():
                     'test to fit (e.g. anti_backlash:position)')
     ap.add_argument('--case-seeds', type=int, default=1, help='sensor seeds of each case '
                     '(7, 11, 15, ...; 7 is the test\'s)')
+    ap.add_argument('--fit', default=FIT, help='parameters of the speed part (default '
+                    f'{FIT}; default: identify\'s default set, no --fit)')
+    ap.add_argument('--modes', default='velocity,torque', help='drive modes of the speed part')
     a = ap.parse_args()
     if a.seconds:
-        speed(a.seconds)
+        speed(a.seconds, a.fit, [m for m in a.modes.split(',') if m])
     if a.seeds:
         coverage(a.seeds)
     if a.profiles:

@@ -60,7 +60,7 @@ class Coordinate:
         return min(self.upper, max(self.lower, v))
 
 
-def interval_jacobian(fun, z, r0, steps):
+def interval_jacobian(fun, z, r0, steps, lo=None, hi=None):
     """
     Return the difference Jacobian of ``fun`` at ``z``: per column the flattest of four.
 
@@ -71,18 +71,23 @@ def interval_jacobian(fun, z, r0, steps):
     The smooth part is the derivative; a difference across a jump overstates
     it, and so does round-off divided by a small step (both understate the
     interval). Of the forward and backward differences of a small and a
-    larger step, the one with the smallest norm crossed neither.
+    larger step, the one with the smallest norm crossed neither. A
+    difference whose step leaves the bounds ``lo``, ``hi`` is not taken: the
+    coordinate is clipped there, so it would be zero, the flattest, and a
+    parameter fitted at its bound would seem to have no effect.
     """
     jac = np.empty((r0.size, len(z)))
     for i in range(len(z)):
-        cols = []
+        cols, inside = [], []
         for step in steps:
             h = step * max(1.0, abs(z[i]))
             for sign in (1.0, -1.0):
                 zi = np.array(z, dtype=float)
                 zi[i] += sign * h
                 cols.append((fun(zi) - r0) / (sign * h))
-        jac[:, i] = min(cols, key=np.linalg.norm)
+                inside.append((lo is None or zi[i] >= lo[i]) and (hi is None or zi[i] <= hi[i]))
+        kept = [c for c, ok in zip(cols, inside) if ok] or cols
+        jac[:, i] = min(kept, key=np.linalg.norm)
     return jac
 
 

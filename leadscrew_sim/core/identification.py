@@ -330,7 +330,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         r = fun(z)
         nfev += fun.nfev
         message = res.message
-        jac = V.interval_jacobian(fun, z, r, jac_steps)
+        jac = V.interval_jacobian(fun, z, r, jac_steps, lo, hi)
         nfev_after = fun.nfev
         cov, lag = sandwich(jac, r, fun.shape)
         verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),

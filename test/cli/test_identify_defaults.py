@@ -16,7 +16,7 @@ import math
 
 from helpers import cli_ok
 from leadscrew_sim import load_preset
-from leadscrew_sim.core.fit_data import Coordinate, judge
+from leadscrew_sim.core.fit_data import Coordinate, interval_jacobian, judge
 from leadscrew_sim.core import identification as ident
 import numpy as np
 import pytest
@@ -162,3 +162,28 @@ def test_an_interval_at_a_bound_holds_a_truth_on_it():
     # one-sided: [0, v + t s.e.], the part of v +- t s.e. within the bounds (t of 399
     # degrees of freedom, 1.966)
     assert vd.lower == 0.0 and abs(vd.upper - tq * se) <= 1e-6 * se, (vd, se)
+
+
+def test_the_jacobian_of_a_value_at_its_bound_is_its_slope():
+    """
+    A fit on its lower bound: the intervals' Jacobian is the slope inside, not 0.
+
+    The residuals see the parameter through its value, clipped into the
+    bounds (as the fit's), so a backward difference from the bound changes
+    nothing: were it taken, the flattest of the differences would be 0 and
+    the parameter "without sensitivity". Oracle: the residuals are linear,
+    z x - y, so every difference inside the bounds is x to round-off.
+    """
+    c = Coordinate('guide_coulomb', 1.0, 0.0, 100.0, False, 1.0, 1.0)
+    x = np.linspace(0.0, 1.0, 50)
+
+    def fun(z):
+        """Return the residuals of the clipped value z x (data 0)."""
+        return c.to_value(z[0]) * x
+
+    z = np.array([1e-12])                      # where the optimiser stops on the bound
+    jac = interval_jacobian(fun, z, fun(z), (1e-5, 1e-3), np.array([0.0]), np.array([100.0]))
+    assert np.allclose(jac[:, 0], x, rtol=1e-6, atol=1e-9), jac[:5, 0]
+    vd = judge([c], z, jac, np.linalg.inv(jac.T @ jac), fun(z), np.array([0.0]),
+               np.array([100.0]), 0.95, dof=49)[0]
+    assert 'no sensitivity' not in vd.reason and 'at its lower bound' in vd.reason, vd
