@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from . import identify_report as R
-from .args import CliError, NS
+from .args import CliError, keep_freed_memory, NS
 from ..core import identification as ident
 from ..core import fit_steps
 from ..core.drive import MODE_TORQUE
@@ -360,6 +360,7 @@ def _refit(problem, res, names, start, coords, args, why):
 
 def run(args):
     """Fit the parameters and write the report, the parameter file and the plot."""
+    keep_freed_memory()                 # thousands of re-simulations reuse their blocks
     out = fit_recording(args)
     text = R.report(args.file, out)
     if not args.quiet:
