@@ -8,6 +8,6 @@ from leadscrew_sim.cli import args
 
 @pytest.mark.skipif(platform.libc_ver()[0] != 'glibc', reason='glibc only')
 def test_glibc_takes_the_malloc_settings():
-    """mallopt accepts both thresholds; a second call keeps the first answer."""
+    """The C library takes both mallopt thresholds; a second call keeps the first answer."""
     assert args.keep_freed_memory() is True
     assert args.keep_freed_memory() is True
