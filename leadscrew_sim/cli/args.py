@@ -2,7 +2,6 @@
 import argparse
 import contextlib
 import ctypes
-import ctypes.util
 import gc
 import math
 from pathlib import Path
@@ -187,7 +186,7 @@ def keep_freed_memory():
     if not _MALLOC_TUNED:
         ok = False
         try:
-            mallopt = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6').mallopt
+            mallopt = ctypes.CDLL(None).mallopt      # the process's own symbols: libc's
             ok = bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_THRESHOLD)
                       and mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
         except (OSError, AttributeError):
