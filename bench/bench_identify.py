@@ -102,10 +102,7 @@ def speed(seconds, fit=FIT, modes=('velocity', 'torque')):
             out = fit_recording(_args(rec, fit))
             wall = time.perf_counter() - t0
         res, problem = out['res'], out['problem']
-        errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
-                         f'{"" if vd.identified else " (not identifiable)"}'
-                         f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
-                         for n, v, vd in zip(res.names, res.values, res.verdicts))
+        errs = _errors(res, true)
         print(f'{mode:>8} mode, {seconds:g} s at 1 kHz: {wall:.1f} s wall, '
               f'{problem.evaluations} re-simulations; errors: {errs}')
 
@@ -143,6 +140,14 @@ def _holds(vd, t):
     return bool(vd.identified and vd.lower <= t <= vd.upper)
 
 
+def _errors(res, true, digits=2):
+    """Return each fitted parameter's error [%] against ``true``, with its verdict."""
+    return ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.{digits}f} %'
+                     f'{"" if vd.identified else " (not identifiable)"}'
+                     f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
+                     for n, v, vd in zip(res.names, res.values, res.verdicts))
+
+
 def profiles(names):
     """Print the errors and verdicts of 4-parameter fits of ``simulate --excite`` recordings."""
     true, sets = T.truth('tr12x3')
@@ -155,10 +160,7 @@ def profiles(names):
             out = fit_recording(_args(rec))
             wall = time.perf_counter() - t0
         res = out['res']
-        errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.2f} %'
-                         f'{"" if vd.identified else " (not identifiable)"}'
-                         f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
-                         for n, v, vd in zip(res.names, res.values, res.verdicts))
+        errs = _errors(res, true)
         print(f'{name:>10}: {out["problem"].n} steps, {out["problem"].slow} left out (slow), '
               f'{wall:.1f} s wall; {errs}')
 
@@ -186,10 +188,7 @@ def cases(names, seeds=1):
             res = out['res']
             for n, vd in zip(res.names, res.verdicts):
                 held[n] = held.get(n, 0) + _holds(vd, getattr(true, n))
-            errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.4f} %'
-                             f'{"" if vd.identified else " (not identifiable)"}'
-                             f'{" (in its interval)" if _holds(vd, getattr(true, n)) else ""}'
-                             for n, v, vd in zip(res.names, res.values, res.verdicts))
+            errs = _errors(res, true, digits=4)
             anchoring = out['problem'].anchoring
             restarts = f'restarted at {len(anchoring.rests)} rests, ' if anchoring else ''
             print(f'{key:>24} seed {T.SENSORS["sensor_seed"]}: {out["problem"].slow} steps '
