@@ -5,7 +5,7 @@ Repository paths (REPO, SHARED: ../shared, which may be absent), time and
 QoS constants, a leadscrew_sim executable as a real subprocess (NodeProcess),
 the offline CLI runner, and the test-side rclpy helper (Ros) with the node
 start and wait helpers of the ROS layer's tests. ROS is imported only where
-it is used (Ros, DEEP, command_publisher, param_msg), so the core, io and
+it is used (Ros, DEEP, command_publisher, publish_until, param_msg), so the core, io and
 cli tests run without loading rclpy.
 """
 import os
@@ -190,7 +190,19 @@ def command_publisher(ros, topic='torque_command', msg_type=None, timeout=10.0):
         msg_type = Float64
     pub = ros.node.create_publisher(msg_type, topic, 10)
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
+    # Matching is one-sided: the node drops samples of a writer it has not yet
+    # discovered itself, which on a loaded machine can trail this side's match.
+    ros.spin_for(0.3)
     return pub
+
+
+def publish_until(ros, pub, msg, pred, timeout=10.0, period=0.05):
+    """Publish ``msg`` every ``period`` s [s] until ``pred()`` holds or ``timeout`` [s]."""
+    end = time.monotonic() + timeout
+    while not pred() and time.monotonic() < end:
+        pub.publish(msg)
+        ros.spin_for(period)
+    return pred()
 
 
 def param_msg(name, value):

@@ -108,8 +108,15 @@ def test_velocity_command_float64_and_its_timeout_hold_the_load(run_exe, ros):
     wait_states(ros, states, proc)
     pub = command_publisher(ros, 'velocity_command')
     x0 = nut(states)
-    send(ros, pub, Float64(data=0.01), 1.0)          # 10 mm/s for 1 s, then silence
+    # 10 mm/s until the nut has travelled 5 mm, then silence. The deadline leaves
+    # room for discovery: the node drops what arrives before it has matched the
+    # publisher, and the test's side matches first.
+    for _ in range(100):
+        send(ros, pub, Float64(data=0.01), 0.1)
+        if nut(states) - x0 > 0.005:
+            break
     assert nut(states) - x0 > 0.005
+    assert states[-1].velocity[1] == pytest.approx(0.01, rel=0.2)
     ros.spin_for(1.0)                                # stale: quick stop, then hold
     x_hold = nut(states)
     ros.spin_for(3.0)

@@ -298,11 +298,13 @@ for i, a in enumerate(args):
         with open(args[i + 1]) as fh:
             for section in (yaml.safe_load(fh) or {{}}).values():
                 params.update(section.get('ros__parameters', {{}}))
-with open(os.environ['FAKE_RSP_OUT'], 'w') as fh:
-    json.dump({{'argv': args, 'parameters': params}}, fh)
 stop = []
 signal.signal(signal.SIGINT, lambda *_: stop.append(1))
 signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+out = os.environ['FAKE_RSP_OUT']
+with open(out + '.part', 'w') as fh:
+    json.dump({{'argv': args, 'parameters': params}}, fh)
+os.replace(out + '.part', out)      # the test reads it whole or not at all
 while not stop:
     time.sleep(0.05)
 '''
@@ -342,7 +344,8 @@ def test_robot_state_publisher_gets_the_urdf_of_the_preset(launch, probe, prefix
     assert '/ax2/joint_states' in got, proc.output()
     assert list(got['/ax2/joint_states'].name) == ['z_screw_joint', 'z_nut_joint'], \
         proc.output()
-    assert out.is_file(), proc.output()
+    # The stand-in is ready for SIGINT once its output exists.
+    assert probe.spin_until(out.is_file, 30.0), proc.output()
     rsp = json.loads(out.read_text())
     assert '__ns:=/ax2' in rsp['argv']
     robot = yourdfpy.URDF.load(io.StringIO(rsp['parameters']['robot_description']),

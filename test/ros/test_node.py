@@ -13,8 +13,8 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from helpers import (command_publisher, DEEP, MS, NODE, param_msg, Ros, stamp_ns, start_node,
-                     wait_states)
+from helpers import (command_publisher, DEEP, MS, NODE, param_msg, publish_until, Ros,
+                     stamp_ns, start_node, wait_states)
 from leadscrew_sim.core import load_preset
 import pytest
 from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
@@ -55,12 +55,11 @@ def test_torque_step_moves_nut_in_documented_direction(run_exe, ros, tmp_path):
                               and abs(states[-1].velocity[1]) < 1e-3, 10.0)
         ros.spin_for(0.1)
         start = len(states)
-        end = time.monotonic() + 0.6
-        while time.monotonic() < end:
-            pub.publish(Float64(data=torque))
-            ros.spin_for(0.05)
         # The test side may lag behind the 1 kHz stream: wait on the data, not the clock.
-        assert ros.spin_until(lambda: torque in [s.effort[0] for s in states[start:]], 10.0)
+        msg = Float64(data=torque)
+        assert publish_until(ros, pub, msg,
+                             lambda: torque in [s.effort[0] for s in states[start:]])
+        publish_until(ros, pub, msg, lambda: False, timeout=0.35)   # 300 steps held
         first = next(i for i in range(start, len(states)) if states[i].effort[0] == torque)
         assert ros.spin_until(lambda: len(states) > first + 300, 10.0)
         dx = states[first + 300].position[1] - states[first - 1].position[1]
@@ -108,11 +107,9 @@ def test_joint_commands_like_topic_based_ros2_control(run_exe, ros):
     wait_states(ros, states, proc)
     pub = command_publisher(ros, 'joint_commands', JointState)
     start = len(states)
-    end = time.monotonic() + 0.6
-    while time.monotonic() < end:
-        pub.publish(JointState(name=['screw_joint'], effort=[-0.4]))
-        ros.spin_for(0.05)
-    assert ros.spin_until(lambda: -0.4 in [s.effort[0] for s in states[start:]], 10.0)
+    msg = JointState(name=['screw_joint'], effort=[-0.4])
+    assert publish_until(ros, pub, msg, lambda: -0.4 in [s.effort[0] for s in states[start:]])
+    publish_until(ros, pub, msg, lambda: False, timeout=0.35)       # 300 steps held
     first = next(i for i in range(start, len(states)) if states[i].effort[0] == -0.4)
     assert ros.spin_until(lambda: len(states) > first + 300, 10.0)
     dx = states[first + 300].position[1] - states[first - 1].position[1]
