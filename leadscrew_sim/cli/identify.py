@@ -19,10 +19,10 @@ import numpy as np
 
 from . import identify_report as R
 from .args import CliError, keep_freed_memory, NS
+from .identify_bootstrap import bootstrap
 from ..core import identification as ident
 from ..core import fit_steps
 from ..core.drive import MODE_TORQUE
-from ..core.fit_data import REL_MAX, t_quantile
 from ..core.params import ParameterError, ScrewParams
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
@@ -280,7 +280,8 @@ def fit_recording(args):
         res (FitResult), params (the fitted ScrewParams), problem, label,
         initial and final (the re-simulated columns), wall [s], single (the
         rejected FitResult of one run from the start when restarts at the
-        rests replaced it, else None).
+        rests replaced it, else None), second (None without a second attempt,
+        else whether it explained the recording).
 
     """
     names = R.fit_names(args.fit)
@@ -295,32 +296,38 @@ def fit_recording(args):
         coords = ident.coordinates(names, start)
     except ValueError as exc:
         raise CliError(f'--fit: {exc}') from None
+    weights = dict(problem.measurements.sigma)
     res, initial, final, misfit = _fit(problem, coords, names, start, args)
     single = None           # the fit in one run, when it missed and restarts replaced it
     if misfit and args.restarts == 'auto' and problem.restart():
         single = _reject(res, misfit)
         res, initial, final, misfit = _fit(problem, coords, names, start, args)
         res.nfev += single.nfev
+    second = None           # whether a second attempt explained the recording (None: none)
+    if misfit and problem.anchoring is None:
+        res, initial, final, misfit = _rescanned(problem, coords, names, start, args, weights,
+                                                 (res, initial, final, misfit))
+        second = not misfit
     problem.bootstrap = {}
     if misfit:
         res = _reject(res, misfit)
         final = problem.replay(dict(zip(res.names, res.values)))
     elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
             ident.sensor_sigma(ScrewParams()):
-        res = _bootstrap(problem, res, names, start, coords, args)
+        res = bootstrap(problem, res, names, start, coords, args, _bounds(coords))
         final = problem.replay(dict(zip(res.names, res.values)))
     params = ScrewParams.from_dict({n: v for n, v, vd in zip(res.names, res.values,
                                                              res.verdicts) if vd.identified},
                                    base=start)
     return dict(res=res, params=params, problem=problem, label=label, initial=initial,
-                final=final, wall=time.perf_counter() - t_wall, single=single)
+                final=final, wall=time.perf_counter() - t_wall, single=single, second=second)
 
 
 #: Most refits after the steps compared moved with the fitted values (restarts at rests).
 PREDICT_ROUNDS = 3
 
 
-def _fit(problem, coords, names, start, args):
+def _fit(problem, coords, names, start, args, rescan=False):
     """
     Fit ``problem`` from ``start``; return (FitResult, initial and final columns, misfit).
 
@@ -334,7 +341,7 @@ def _fit(problem, coords, names, start, args):
     why = hints(problem.compared(initial))
     res = ident.fit(problem.residuals, coords, horizons=horizons(problem), hints=why,
                     max_nfev=args.max_nfev, profile=problem.anchoring is not None,
-                    jac_steps=problem.jac_steps)
+                    rescan=rescan, jac_steps=problem.jac_steps)
     fitted = dict(zip(res.names, res.values))
     for _again in range(PREDICT_ROUNDS):    # the steps the rests determine at the fit
         if problem.anchoring is None or not problem.predict(fitted):
@@ -347,6 +354,26 @@ def _fit(problem, coords, names, start, args):
         res = _refit(problem, res, names, start, coords, args, why)
         final = problem.replay(dict(zip(res.names, res.values)))
     return res, initial, final, _misfit(problem, final)
+
+
+def _rescanned(problem, coords, names, start, args, weights, missed):
+    """
+    Fit once more with the later stages' scans also from the start; return the better fit.
+
+    ``missed`` is the fit (as :func:`_fit` returns it) that does not explain the
+    recording; the new one starts with the signals' weights ``weights`` of the
+    first and replaces it only if it explains the recording. Either way the
+    re-simulations of both are counted.
+    """
+    kept = (dict(problem.measurements.sigma), list(problem.raised))
+    problem.measurements.sigma, problem.raised = dict(weights), []
+    again = _fit(problem, coords, names, start, args, rescan=True)
+    nfev = missed[0].nfev + again[0].nfev
+    if again[3]:
+        problem.measurements.sigma, problem.raised = kept
+        again = missed
+    again[0].nfev = nfev
+    return again
 
 
 def _refit(problem, res, names, start, coords, args, why):
@@ -397,87 +424,6 @@ def _reject(res, why):
     nan = [float('nan')] * len(res.names)
     return dataclasses.replace(res, values=list(res.initial), verdicts=verdicts, lower=nan,
                                upper=list(nan))
-
-
-#: Synthetic recordings of the parametric bootstrap of the intervals, and how far from the
-#: fitted values (in half-widths of their intervals) each refit starts.
-BOOTSTRAP, AWAY = 4, 2.0
-
-
-def _bootstrap(problem, res, names, start, coords, args):
-    """
-    Widen each interval to the spread of refits of synthetic recordings (a parametric bootstrap).
-
-    Each of :data:`BOOTSTRAP` synthetic recordings re-simulates the commands at
-    the fitted values with the recorded sensor model and its own seed (not the
-    recording's), so it holds what the recording would hold if the fit were
-    the truth: sensor noise, quantisation, and in velocity and position mode
-    that noise acting on the motion through the drive. Each is fitted the
-    same way from the fitted values; the RMS of their errors delta_j about
-    those values is the estimator's error s_b, which the Jacobian's interval
-    misses where the residuals are not the noise it assumes (quantisation
-    of a slow signal, the loop's response to its sensors). The interval
-    becomes value +- max(w, t_K s_b) (t quantile of K degrees of freedom: the
-    errors' mean is known to be 0). Returns the new FitResult.
-    """
-    fitted = dict(zip(res.names, res.values))
-    sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
-    meas = problem.measurements
-    recorded = (meas.data, meas.mask, problem.anchoring)
-    errors, nfev = [], res.nfev
-    try:
-        for j in range(BOOTSTRAP):
-            sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
-            synthetic = problem.replay(dict(fitted, **sensors), plain=True)
-            cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
-            data = np.array([cols[s] for s in meas.names])
-            if problem.anchoring is None:
-                meas.data = np.where(meas.mask, data, 0.0)
-            else:           # its own rests, and the steps they determine
-                problem.use_data(data, fitted)
-            away = {}
-            for i, (c, v, vd) in enumerate(zip(coords, res.values, res.verdicts)):
-                sign = (1.0, -1.0)[(j + (i if j >= 2 else 0)) % 2]
-                step = AWAY * 0.5 * (vd.upper - vd.lower) if vd.identified else 0.0
-                away[c.name] = min(c.upper, max(c.lower, v + sign * step))
-            syn = ident.fit(problem.residuals, ident.coordinates(
-                names, ScrewParams.from_dict(away, base=start), _bounds(coords)),
-                max_nfev=args.max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
-            errors.append(np.array(syn.values) - np.array(res.values))
-            nfev += syn.nfev
-    finally:
-        meas.data, meas.mask, problem.anchoring = recorded
-    s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
-    tq = t_975(BOOTSTRAP)
-    verdicts, lower, upper = [], [], []
-    for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
-        problem.bootstrap[c.name] = float(s_b[i])
-        if not vd.identified or not tq * s_b[i] > 0.5 * (vd.upper - vd.lower):
-            verdicts.append(vd)
-            lower.append(vd.lower)
-            upper.append(vd.upper)
-            continue
-        hw = tq * float(s_b[i])
-        lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
-        rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
-        ok = rel <= REL_MAX
-        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
-               'refits of synthetic recordings)' if ok else
-               f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
-               f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
-        verdicts.append(dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi,
-                                            rel=rel, std=float(s_b[i])))
-        lower.append(lo)
-        upper.append(hi)
-    values = [v if vd.identified else v0
-              for v, v0, vd in zip(res.values, res.initial, verdicts)]
-    return dataclasses.replace(res, values=values, lower=lower, upper=upper,
-                               verdicts=verdicts, nfev=nfev)
-
-
-def t_975(dof):
-    """Return the 97.5 % quantile of the t distribution of ``dof`` degrees of freedom."""
-    return t_quantile(0.95, dof)
 
 
 def _bounds(coords):

@@ -55,6 +55,10 @@ def report(path, out):
         lines.append(f'restarted at {len(problem.anchoring.rests)} rests from the recorded '
                      f'state{why}; compared: {used} of {problem.n} steps, those the '
                      'recorded states determine to within the noise')
+    if out.get('second') is not None:
+        lines.append('fitted twice: the first fit did not explain the recording; the second, '
+                     'its later scans also from the starting values, '
+                     + ('did and replaced it' if out['second'] else 'did not either'))
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '

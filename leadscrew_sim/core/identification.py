@@ -234,7 +234,7 @@ ANCHOR = 1.0
 
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
-        hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, profile=False,
+        hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, rescan=False, profile=False,
         jac_steps=JAC_STEPS):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
@@ -276,6 +276,9 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
     scan : bool
         Scan coordinate by coordinate out of a stage that leaves a residual
         above twice the noise (False: local fits only).
+    rescan : bool
+        Also start the scans of the later stages from the starting point: a
+        short horizon can favour a basin that the longer ones then cannot leave.
     profile : bool
         Also scan each log-scaled parameter's profile after the whole run's
         stage (:func:`profiled`).
@@ -321,7 +324,8 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
                 res, _z = restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev,
                                       len(active))
             if _round == 0 and scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
-                res = scanned(target, res, [z_stage, res.x], lo, hi, step, ftol, xtol,
+                origins = [z_stage, res.x] + ([z0] if rescan and stage > 0 else [])
+                res = scanned(target, res, origins, lo, hi, step, ftol, xtol,
                               max_nfev, active, restart=h is None)
             if h is None and profile and _round == 0:
                 res = profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, active)
