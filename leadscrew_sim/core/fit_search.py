@@ -15,6 +15,32 @@ import math
 import numpy as np
 
 
+def local_fit(fun, z, lo, hi, diff_step, ftol, xtol, max_nfev, p):
+    """
+    Return scipy's bounded local least-squares fit (``trf``, z unscaled) of ``fun`` from ``z``.
+
+    Parameters
+    ----------
+    fun : callable
+        z -> the flattened weighted residuals.
+    z : numpy.ndarray
+        The starting point.
+    lo, hi : numpy.ndarray
+        Bounds of z.
+    diff_step, ftol, xtol : float
+        Options of ``least_squares`` (see :func:`.identification.fit`).
+    max_nfev : int or None
+        Most evaluations (None: 50 per parameter).
+    p : int
+        The number of parameters.
+
+    """
+    from scipy.optimize import least_squares
+    return least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
+                         diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
+                         max_nfev=max_nfev or 50 * p)
+
+
 #: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
 RESTARTS, RESTART_GAIN = 3, 1e-4
 
@@ -44,12 +70,9 @@ def restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
         The number of parameters.
 
     """
-    from scipy.optimize import least_squares
     for k in range(RESTARTS):
         step = diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
-        new = least_squares(fun, res.x, bounds=(lo, hi), method='trf', x_scale=1.0,
-                            diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                            max_nfev=max_nfev or 50 * p)
+        new = local_fit(fun, res.x, lo, hi, step, ftol, xtol, max_nfev, p)
         if not new.cost < res.cost * (1.0 - RESTART_GAIN):
             if new.cost < res.cost:
                 res = new
@@ -101,7 +124,6 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
         Restart the last local fit as :func:`restart_fit` does.
 
     """
-    from scipy.optimize import least_squares
     best_z, best_c = np.array(res.x), float(np.sum(res.fun ** 2))
     for zs in starts:
         z = np.array(zs, dtype=float)
@@ -120,9 +142,7 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
             best_z, best_c = z, c
     if best_c >= 2.0 * res.cost:
         return res
-    new = least_squares(fun, best_z, bounds=(lo, hi), method='trf', x_scale=1.0,
-                        diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                        max_nfev=max_nfev or 50 * len(coords))
+    new = local_fit(fun, best_z, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
     if restart:
         new, _z = restart_fit(fun, new, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
     return new if new.cost < res.cost else res
@@ -162,7 +182,6 @@ def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
         The fitted parameters.
 
     """
-    from scipy.optimize import least_squares
     best = res
     for i, c in enumerate(coords):
         if not c.log or len(coords) < 2:
@@ -179,19 +198,15 @@ def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
                     z[i], z[others] = zi, zo
                     return fun(z)
 
-                r = least_squares(reduced, best.x[others], bounds=(lo[others], hi[others]),
-                                  method='trf', x_scale=1.0, diff_step=diff_step,
-                                  ftol=PROFILE_TOL, xtol=PROFILE_TOL, gtol=1e-10,
-                                  max_nfev=max_nfev or 50 * len(coords))
+                r = local_fit(reduced, best.x[others], lo[others], hi[others], diff_step,
+                              PROFILE_TOL, PROFILE_TOL, max_nfev, len(coords))
                 if found is None or r.cost < found[0]:
                     found = (r.cost, zi, r.x)
             centre = found[1]
         if found[0] < best.cost:
             z = np.empty(len(coords))
             z[i], z[others] = found[1], found[2]
-            new = least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
-                                diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                                max_nfev=max_nfev or 50 * len(coords))
+            new = local_fit(fun, z, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
             if new.cost < best.cost:
                 best = new
     return best

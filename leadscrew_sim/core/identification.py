@@ -27,7 +27,7 @@ import numpy as np
 
 from .params import ScrewParams
 from . import fit_data as V
-from .fit_search import profiled, restart_fit, scanned, spread, SCAN_ABOVE
+from .fit_search import local_fit, profiled, restart_fit, scanned, spread, SCAN_ABOVE
 from .fit_data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
                        noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                        sensor_sigma, SIGNALS)
@@ -286,7 +286,6 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         Relative steps in z of the intervals' Jacobian (:func:`.fit_data.interval_jacobian`).
 
     """
-    from scipy.optimize import least_squares
     t_wall = time.perf_counter()
     fixed = dict(fixed or {})
     active = list(coords)
@@ -314,9 +313,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
             step = diff_step * (COARSE if h is not None else 1.0)
             target = fun if h is None else _Anchored(fun, z)
             for zs in starts:
-                res = least_squares(target, zs, bounds=(lo, hi), method='trf', x_scale=1.0,
-                                    diff_step=step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                                    max_nfev=max_nfev or 50 * len(active))
+                res = local_fit(target, zs, lo, hi, step, ftol, xtol, max_nfev, len(active))
                 if best is None or res.cost < best.cost:
                     best = res
             res, z_stage = best, z
