@@ -18,7 +18,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from leadscrew_sim.core import drive as D, kernel as K, layout as L
+from leadscrew_sim.core.engine import drive as D, kernel as K, layout as L
 from leadscrew_sim import LeadScrewModel, load_preset, preset_names
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from leadscrew_sim import cli, LeadScrewModel, load_preset
 from leadscrew_sim.cli.simulate import BLOCK_TICKS
 from leadscrew_sim.core.commands import CommandHold, NutMap
-from leadscrew_sim.core.excitation import make_profile
+from leadscrew_sim.analysis.excitation.profiles import make_profile
 
 
 def bare_blocks(seconds, rate, excite):

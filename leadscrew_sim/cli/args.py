@@ -1,28 +1,12 @@
-"""Shared pieces of the verbs: errors, the parser class, ``--set``, parameter loading, progress."""
+"""The verbs' shared parser pieces: the one-line parser, its usage error, shared options."""
 import argparse
-import contextlib
-import ctypes
-import gc
-import math
-from pathlib import Path
-import sys
-import time
 
-from ..core import yamlio
-from ..core.fields import field_name
-from ..core.params import ParameterError, ScrewParams
-from ..core.presets import load_preset, physics_subset, read_parameter_file
+from ..offline.options import RunError
 
 PROG = 'leadscrew_sim'
-NS = 1_000_000_000
-DEFAULT_PRESET = 'tr12x3'
 
 
-class CliError(Exception):
-    """A user-facing error: printed as one line, exit status 1."""
-
-
-class UsageError(CliError):
+class UsageError(RunError):
     """A command-line usage error (exit status 2)."""
 
 
@@ -34,183 +18,8 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def parse_scalar(text):
-    """Parse a --set value as a YAML scalar; '1e-4' counts as a number."""
-    try:
-        value = yamlio.load(text)
-    except yamlio.YAMLError:
-        value = text
-    if isinstance(value, str):
-        try:
-            value = float(value)
-        except ValueError:
-            pass
-    return value
-
-
-def parse_sets(items):
-    """Return (physics overrides, run-setting overrides) from ``name=value`` strings."""
-    names = ScrewParams.names()
-    phys, run = {}, {}
-    for item in items or ():
-        name, sep, text = item.partition('=')
-        name = name.strip()
-        if not sep or not name:
-            raise CliError(f'--set {item!r}: expected name=value')
-        value = parse_scalar(text)
-        if field_name(name) in names:
-            phys[field_name(name)] = value
-        elif name == 'joint_prefix':
-            run[name] = '' if value is None else str(text)
-        else:
-            raise CliError(f"--set: unknown parameter '{name}' (physics parameters: "
-                           f"{', '.join(sorted(ScrewParams.parameter_names()))}; or "
-                           'joint_prefix)')
-    return phys, run
-
-
-def check_finite(name, value):
-    """Raise CliError unless option ``name`` has a finite ``value``."""
-    if not math.isfinite(value):
-        raise CliError(f'{name} {value!r} is not a finite number')
-
-
-def load_params(args, phys_overrides):
-    """Return (ScrewParams, preset label, extra settings from a --params file)."""
-    if args.params and args.preset:
-        raise CliError('give --preset or --params, not both')
-    extra = {}
-    if args.params:
-        try:
-            values = read_parameter_file(args.params)
-        except OSError as exc:
-            raise CliError(f'--params {args.params}: {exc.strerror or exc}') from None
-        except ParameterError:
-            raise CliError(f'--params {args.params}: no "<node>: ros__parameters:" '
-                           'section') from None
-        except Exception as exc:  # noqa: B902 - YAML syntax errors of many kinds
-            raise CliError(f'--params {args.params}: cannot parse YAML: '
-                           f'{str(exc).splitlines()[0]}') from None
-        phys, other = physics_subset(values)
-        preset = other.get('preset')
-        base = load_preset(preset) if isinstance(preset, str) else ScrewParams()
-        params = ScrewParams.from_dict(phys, base=base)
-        extra = {k: other[k] for k in ('update_rate', 'joint_prefix') if k in other}
-        label = Path(args.params).stem
-    else:
-        label = args.preset or DEFAULT_PRESET
-        params = load_preset(label)
-    if phys_overrides:
-        params = ScrewParams.from_dict(phys_overrides, base=params)
-    return params, label, extra
-
-
-class Progress:
-    """
-    A progress bar on stderr, shown only once a run has taken ``delay`` s of wall time.
-
-    Parameters
-    ----------
-    total : int
-        Number of steps of the run.
-    label : str
-        Text before the bar.
-    quiet : bool
-        Never show the bar.
-    delay : float
-        Wall time [s] before the bar appears.
-
-    """
-
-    def __init__(self, total, label, quiet=False, delay=2.0):
-        """Start the clock."""
-        self.total = max(1, total)
-        self.label = label
-        self.quiet = quiet or not total
-        self.t0 = time.monotonic()
-        self.delay = delay
-        self.next = self.t0 + delay
-        self.shown = False
-
-    def update(self, done):
-        """Redraw with ``done`` steps done, at most 4 times a second."""
-        now = time.monotonic()
-        if self.quiet or now < self.next:
-            return
-        self.next = now + 0.25
-        self.shown = True
-        frac = done / self.total
-        bar = '#' * int(30 * frac)
-        rate = done / (now - self.t0)
-        eta = (self.total - done) / rate if rate > 0 else 0.0
-        sys.stderr.write(f'\r{self.label} [{bar:<30}] {100 * frac:5.1f}% ETA {eta:5.1f} s ')
-        sys.stderr.flush()
-
-    def done(self):
-        """Clear the bar."""
-        if self.shown:
-            sys.stderr.write('\r' + ' ' * 70 + '\r')
-            sys.stderr.flush()
-
-
 def add_compression_argument(p):
     """Add ``--compression`` (of the MCAP chunks written) to parser ``p``."""
     p.add_argument('--compression', choices=('lz4', 'zstd', 'none'), default='lz4',
                    help='chunk compression of the MCAP written (default lz4: written and read '
                         'about twice as fast as zstd, files about a third larger)')
-
-
-def compression_of(args):
-    """Return the McapWriter compression of ``--compression``."""
-    return '' if args.compression == 'none' else args.compression
-
-
-#: glibc's mallopt parameters, and the values the offline runs set.
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-_MMAP_THRESHOLD = 32 << 20          # glibc's ceiling of its own dynamic threshold, 64-bit
-_TRIM_THRESHOLD = 512 << 20
-_MALLOC_TUNED = []
-
-
-def keep_freed_memory():
-    """
-    Have glibc's malloc serve blocks up to 32 MiB from its heap and keep freed memory.
-
-    By default glibc maps each large block (the chunks' records, the topics'
-    arrays, the run's columns) afresh and unmaps it when freed, so every block
-    is first touched page by page again: in resim's reading that took about
-    half of the time. Kept in the heap, freed blocks are reused as they are.
-    Once per process; elsewhere than glibc (no ``mallopt``) nothing changes.
-    Returns True when the settings were taken.
-    """
-    if not _MALLOC_TUNED:
-        ok = False
-        try:
-            mallopt = ctypes.CDLL(None).mallopt      # the process's own symbols: libc's
-            ok = bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_THRESHOLD)
-                      and mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
-        except (OSError, AttributeError):
-            pass
-        _MALLOC_TUNED.append(ok)
-    return _MALLOC_TUNED[0]
-
-
-@contextlib.contextmanager
-def gc_paused():
-    """
-    Pause Python's cyclic garbage collector inside the block (and keep freed memory).
-
-    Reading and writing a recording makes hundreds of thousands of small
-    acyclic objects (message tuples and bytes); each of them counts toward a
-    collection that finds nothing to free, about a third of resim's reading
-    time. Reference counting still frees them. Also sets
-    :func:`keep_freed_memory` for the rest of the process.
-    """
-    keep_freed_memory()
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()

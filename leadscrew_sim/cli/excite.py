@@ -14,8 +14,9 @@ import csv
 import importlib
 import math
 
-from .args import CliError, check_finite, DEFAULT_PRESET, load_params, parse_scalar, parse_sets
-from ..core.excitation import make_profile, PROFILES
+from ..offline.options import (check_finite, DEFAULT_PRESET, load_params, parse_options,
+                               parse_sets, RunError)
+from ..analysis.excitation.profiles import make_profile, PROFILES
 
 HELP = 'publish an identification profile as commands (breakaway, sweep, reversals, iso230)'
 
@@ -45,18 +46,6 @@ def add_arguments(p):
                    'index,time,value [-, s, SI]')
 
 
-def parse_options(items):
-    """Return {name: value} of ``--opt name=value`` strings."""
-    out = {}
-    for item in items or ():
-        name, sep, text = item.partition('=')
-        name = name.strip()
-        if not sep or not name:
-            raise CliError(f'--opt {item!r}: expected name=value')
-        out[name] = parse_scalar(text)
-    return out
-
-
 def run(args):
     """List, dry-run or publish a profile; return the exit status."""
     phys, _run = parse_sets(args.set)
@@ -70,15 +59,15 @@ def run(args):
         print(f'(defaults for the axis {label})')
         return 0
     if not args.name:
-        raise CliError(f'give a profile NAME ({", ".join(PROFILES)}) or --list')
+        raise RunError(f'give a profile NAME ({", ".join(PROFILES)}) or --list')
     profile = make_profile(args.name, params, **options)
     check_finite('--rate', args.rate)
     if not 0.1 <= args.rate <= 10000.0:
-        raise CliError(f'--rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
+        raise RunError(f'--rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
     if not (math.isfinite(args.wait_timeout) and args.wait_timeout >= 0.0):
-        raise CliError(f'--wait-timeout {args.wait_timeout!r} s must be >= 0')
+        raise RunError(f'--wait-timeout {args.wait_timeout!r} s must be >= 0')
     if args.prefix and not args.joint_commands:
-        raise CliError('--prefix names joints: it needs --joint-commands')
+        raise RunError('--prefix names joints: it needs --joint-commands')
     if args.dry_run is not None:
         return _dry_run(profile, args)
     return _publish(profile, args)
@@ -105,7 +94,7 @@ def _publish(profile, args):
         try:
             log_file = open(args.log, 'w', newline='')
         except OSError as exc:
-            raise CliError(f'--log {args.log}: {exc.strerror or exc}') from None
+            raise RunError(f'--log {args.log}: {exc.strerror or exc}') from None
         writer = csv.writer(log_file)
         writer.writerow(['index', 'time', 'value'])
     try:
@@ -117,7 +106,7 @@ def _publish(profile, args):
         try:
             return ex.run(args.wait_timeout)
         except exciter_mod.ExciteError as exc:
-            raise CliError(str(exc)) from None
+            raise RunError(str(exc)) from None
     finally:
         if log_file is not None:
             log_file.close()

@@ -5,7 +5,7 @@ The recorded commands go through the model (:class:`.replay.Resim`, the
 node's command rules) with ideal sensors; the residuals are the simulated
 less the recorded sensor signals (encoder angle, scale position, and the
 motor torque unless every command is a torque command), each divided by its
-noise level. :mod:`leadscrew_sim.core.identification` fits them; the report,
+noise level. :mod:`leadscrew_sim.analysis.identify.fit` fits them; the report,
 the parameter file and the plot come from :mod:`.identify_report`. Starting
 and fixed values come from ``--preset`` / ``--params`` / ``--set`` (by
 default the preset the recording names), never from the recording's
@@ -18,11 +18,11 @@ import time
 import numpy as np
 
 from . import identify_report as R
-from .args import CliError, keep_freed_memory, NS
-from .identify_bootstrap import bootstrap
-from ..core import identification as ident
-from ..core import fit_steps
-from ..core.drive import MODE_TORQUE
+from ..offline.options import keep_freed_memory, NS, RunError
+from ..analysis.identify.bootstrap import bootstrap
+from ..analysis.identify import fit as ident
+from ..analysis.identify import steps as fit_steps
+from ..core.engine.drive import MODE_TORQUE
 from ..core.params import ParameterError, ScrewParams
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
@@ -86,7 +86,7 @@ class Problem:
             src = R.ForeignReplay(args, rec, start)
             recorded = start
         else:
-            from .replay import Resim
+            from ..offline.replay import Resim
             src = Resim(rec)
             recorded = src.params
             R.check_geometry(start, recorded)
@@ -95,7 +95,7 @@ class Problem:
         _segments, commands, _forces = src.inputs()
         modes = commands[:, 0][np.isfinite(commands[:, 0])]
         if not len(modes) or src.n_steps == 0:
-            raise CliError(f'{rec.path}: no drive commands (torque_command, velocity_command, '
+            raise RunError(f'{rec.path}: no drive commands (torque_command, velocity_command, '
                            'position_command or joint_commands) to re-simulate')
         self.torque_only = bool(np.all(modes == MODE_TORQUE))
         self.mode_names = sorted({('torque', 'velocity', 'position', 'quick_stop')[int(m)]
@@ -232,7 +232,7 @@ class Problem:
             return {k: np.concatenate([c[k] for c in parts]) for k in parts[0]} if parts \
                 else {}
         except ParameterError as exc:
-            raise CliError(f're-simulation with {values}: {exc}') from None
+            raise RunError(f're-simulation with {values}: {exc}') from None
 
     def compared(self, cols):
         """Return the columns ``cols`` of a re-simulation at the steps some signal is compared."""
@@ -286,7 +286,7 @@ def fit_recording(args):
     """
     names = R.fit_names(args.fit)
     if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
-        raise CliError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
     t_wall = time.perf_counter()
     rec = Recording(args.file)
     rec.require_ros2()
@@ -295,7 +295,7 @@ def fit_recording(args):
     try:
         coords = ident.coordinates(names, start)
     except ValueError as exc:
-        raise CliError(f'--fit: {exc}') from None
+        raise RunError(f'--fit: {exc}') from None
     weights = dict(problem.measurements.sigma)
     res, initial, final, misfit = _fit(problem, coords, names, start, args)
     single = None           # the fit in one run, when it missed and restarts replaced it

@@ -7,11 +7,11 @@ go through the node's command rules as a leadscrew_sim recording's do.
 """
 import numpy as np
 
-from .args import CliError, load_params, NS, parse_sets
-from ..core import identification as ident
+from ..offline.options import load_params, NS, parse_sets, RunError
+from ..analysis.identify import fit as ident
 from ..core import yamlio
 from ..core.commands import CommandHold, NutMap
-from ..core.identification import LEVEL
+from ..analysis.identify.fit import LEVEL
 from ..core.params import ScrewParams
 from ..core.presets import load_preset, preset_names
 from ..io import cdr as C
@@ -105,7 +105,7 @@ def write_text(path, text, option):
         with open(path, 'w') as fh:
             fh.write(text)
     except OSError as exc:
-        raise CliError(f'{option} {path}: {exc.strerror or exc}') from None
+        raise RunError(f'{option} {path}: {exc.strerror or exc}') from None
 
 
 def params_document(params, label, res):
@@ -196,7 +196,7 @@ def plot(path, problem, initial, final):
     try:
         fig.savefig(path, dpi=90)
     except OSError as exc:
-        raise CliError(f'--plot {path}: {exc.strerror or exc}') from None
+        raise RunError(f'--plot {path}: {exc.strerror or exc}') from None
     finally:
         plt.close(fig)
 
@@ -218,26 +218,26 @@ class ForeignReplay:
         state = args.state_topic or rec.role_topic('joint_states')
         self.state_topic = _topic(rec, state, '--state-topic')
         if rec.topic_types.get(self.state_topic) != 'sensor_msgs/msg/JointState':
-            raise CliError(f'--state-topic {self.state_topic}: type '
+            raise RunError(f'--state-topic {self.state_topic}: type '
                            f'{rec.topic_types.get(self.state_topic)!r}, expected '
                            'sensor_msgs/msg/JointState')
         if args.command_topic is None:
-            raise CliError('--command-topic: a foreign recording needs the command topic '
+            raise RunError('--command-topic: a foreign recording needs the command topic '
                            '(and --command-kind for a Float64 topic)')
         self.command_topic = _topic(rec, args.command_topic, '--command-topic')
         ctype = rec.topic_types.get(self.command_topic)
         if ctype == 'std_msgs/msg/Float64' and args.command_kind is None:
-            raise CliError('--command-kind: give torque, velocity or position for the Float64 '
+            raise RunError('--command-kind: give torque, velocity or position for the Float64 '
                            f'topic {self.command_topic}')
         if ctype not in ('std_msgs/msg/Float64', 'sensor_msgs/msg/JointState'):
-            raise CliError(f'--command-topic {self.command_topic}: type {ctype!r}, expected '
+            raise RunError(f'--command-topic {self.command_topic}: type {ctype!r}, expected '
                            'std_msgs/msg/Float64 or sensor_msgs/msg/JointState')
         self.kind = args.command_kind
         self.joints = (args.screw_joint or 'screw_joint', args.nut_joint or 'nut_joint')
         self.commands = [(t, d) for t, topic, d in rec.messages if topic == self.command_topic]
         self.states = [(t, d) for t, topic, d in rec.messages if topic == self.state_topic]
         if not self.commands:
-            raise CliError(f'{rec.path}: no messages on the command topic {self.command_topic}')
+            raise RunError(f'{rec.path}: no messages on the command topic {self.command_topic}')
         self.t0 = self.commands[0][0]
         last = max(t for t, _d in self.states) if self.states else self.t0
         self.n_steps = max(0, (last - self.t0) // self.dt_ns)
@@ -286,7 +286,7 @@ def _topic(rec, name, option):
     for topic in rec.topic_types:
         if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
             return topic
-    raise CliError(f"{option} {name}: no such topic in {rec.path} (topics: "
+    raise RunError(f"{option} {name}: no such topic in {rec.path} (topics: "
                    f"{', '.join(sorted(rec.topic_types))})")
 
 
@@ -330,10 +330,10 @@ def fit_names(text):
     names = [n.strip() for n in text.split(',') if n.strip()]
     for n in names:
         if n not in ident.FITTABLE:
-            raise CliError(f"--fit: '{n}' is not a fittable parameter (fittable: "
+            raise RunError(f"--fit: '{n}' is not a fittable parameter (fittable: "
                            f"{', '.join(ident.FITTABLE)})")
     if not names or len(set(names)) != len(names):
-        raise CliError(f'--fit {text!r}: give distinct parameter names, comma separated')
+        raise RunError(f'--fit {text!r}: give distinct parameter names, comma separated')
     return names
 
 
@@ -341,7 +341,7 @@ def start_params(args, rec):
     """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
     phys, run_ov = parse_sets(args.set)
     if run_ov:
-        raise CliError('identify --set accepts physics parameters only')
+        raise RunError('identify --set accepts physics parameters only')
     if args.preset or args.params:
         params, label, _extra = load_params(args, phys)
         return params, label
@@ -357,7 +357,7 @@ def check_geometry(start, recorded):
     for name, (_t, _d, md) in info.items():
         if md.get('read_only') and name not in ('linear_scale', 'initial_position') and \
                 getattr(start, name) != getattr(recorded, name):
-            raise CliError(f'the starting set has {name}={getattr(start, name)!r}, the '
+            raise RunError(f'the starting set has {name}={getattr(start, name)!r}, the '
                            f'recording {getattr(recorded, name)!r}: choose the preset or '
                            'parameter file of this axis (--preset, --params)')
 
@@ -379,5 +379,5 @@ def measurements(path, data, recorded, torque_only, foreign):
         s = max(s, SIGMA_FLOOR[name])
         signals[name], sigma[name], noise[name] = y, s, (s, how)
     if not signals:
-        raise CliError(f'{path}: no measured joint states to fit against')
+        raise RunError(f'{path}: no measured joint states to fit against')
     return ident.Measurements(signals, sigma), noise

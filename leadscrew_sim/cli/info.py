@@ -3,8 +3,8 @@ import os
 
 import numpy as np
 
-from .args import CliError, NS, Progress
-from .replay import Resim
+from ..offline.options import NS, Progress, RunError
+from ..offline.replay import Resim
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
@@ -55,24 +55,24 @@ def run(args):
 
 def _figures_profile(args, rec):
     """Return the profile name of ``--figures`` (None without it); check it first."""
-    from ..core.excitation import PROFILES
+    from ..analysis.excitation.profiles import PROFILES
     from ..io.run_file import CLI_RECORD
     name = args.figures
     if name == 'auto':
         source = (rec.record(CLI_RECORD) or {}).get('torque_input', '')
         name = source.split()[0][len('excite='):] if source.startswith('excite=') else ''
         if not name:
-            raise CliError(f'{args.file}: no --excite profile recorded; give --figures '
+            raise RunError(f'{args.file}: no --excite profile recorded; give --figures '
                            f'PROFILE ({", ".join(PROFILES)})')
     if name is not None and name not in PROFILES:
-        raise CliError(f'--figures {name!r}: no such profile ({", ".join(PROFILES)})')
+        raise RunError(f'--figures {name!r}: no such profile ({", ".join(PROFILES)})')
     return name
 
 
 def _print_figures(args, rec, meta, name):
     """Print the derived figures of an identification profile run (core.figures)."""
-    from ..core import figures as F
-    from ..core.excitation import PROFILES
+    from ..analysis import figures as F
+    from ..analysis.excitation.profiles import PROFILES
     from ..io.run_file import params_from_record
     kind = PROFILES[name].kind
     topic = rec.role_topic(f'{kind}_command')
@@ -87,7 +87,7 @@ def _print_figures(args, rec, meta, name):
             if len(pos) >= 2 and len(vel) >= 2 and eff:
                 rows.append((stamp / NS, eff[0], vel[0], pos[1], vel[1]))
     if not cmd_t or not rows:
-        raise CliError(f'{args.file}: --figures {name} needs {kind}_command and joint_states '
+        raise RunError(f'{args.file}: --figures {name} needs {kind}_command and joint_states '
                        'messages')
     t, tq, w, x, v = (np.array(c) for c in zip(*rows))
     run = dict(time=t, command=F.hold_series(cmd_t, cmd_v, t), motor_torque=tq,

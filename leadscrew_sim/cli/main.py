@@ -9,7 +9,8 @@ import os
 import sys
 
 from . import excite, identify, info, play, plot, resim, simulate
-from .args import CliError, Parser, PROG, UsageError
+from .args import Parser, PROG, UsageError
+from ..offline.options import RunError
 from ..core.params import ParameterError
 from ..io.mcap_reader import RecordingError
 from ..io.run_file import RunFileError
@@ -41,7 +42,7 @@ def main(argv=None):
     except UsageError as exc:
         print(f'{PROG}: error: {exc} (see {PROG} --help)', file=sys.stderr)
         return 2
-    except (CliError, ParameterError, RecordingError, RunFileError) as exc:
+    except (RunError, ParameterError, RecordingError, RunFileError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -7,7 +7,8 @@ import math
 import sys
 import time
 
-from .args import CliError, NS, PROG
+from .args import PROG
+from ..offline.options import NS, RunError
 from ..core import yamlio
 from ..io import messages as M
 from ..io.mcap_reader import Recording
@@ -46,11 +47,11 @@ def _message_class(msg_type):
     if len(parts) == 2:
         parts = [parts[0], 'msg', parts[1]]
     if len(parts) != 3:
-        raise CliError(f'unsupported message type name {msg_type!r}')
+        raise RunError(f'unsupported message type name {msg_type!r}')
     try:
         return getattr(importlib.import_module(f'{parts[0]}.{parts[1]}'), parts[2])
     except (ImportError, AttributeError):
-        raise CliError(f'message type {msg_type!r} is not installed') from None
+        raise RunError(f'message type {msg_type!r} is not installed') from None
 
 
 def _qos_from_metadata(metadata):
@@ -109,7 +110,7 @@ def _parse_remaps(items):
     for item in items or ():
         src, sep, dst = item.partition(':=')
         if not sep or not src or not dst:
-            raise CliError(f'--remap {item!r}: expected from:=to')
+            raise RunError(f'--remap {item!r}: expected from:=to')
         remap[src] = dst
     return remap
 
@@ -117,29 +118,29 @@ def _parse_remaps(items):
 def run(args):
     """Republish a recording with its original timing; return the exit status."""
     if not (math.isfinite(args.rate) and args.rate > 0):
-        raise CliError(f'--rate {args.rate} must be > 0')
+        raise RunError(f'--rate {args.rate} must be > 0')
     rec = Recording(args.file, topics=args.topics)
     rec.require_ros2()
     remap = _parse_remaps(args.remap)
     if args.topics:
         unknown = [t for t in args.topics if t not in rec.topic_types]
         if unknown:
-            raise CliError(f'--topics: not in the file: {", ".join(unknown)} (topics: '
+            raise RunError(f'--topics: not in the file: {", ".join(unknown)} (topics: '
                            f'{", ".join(sorted(rec.topic_types))})')
     if not rec.messages:
-        raise CliError(f'{args.file}: no messages to play')
+        raise RunError(f'{args.file}: no messages to play')
     used = sorted({m[1] for m in rec.messages})
     chan_meta = {c.topic: dict(c.metadata) for c in rec.channels.values()}
     classes = {}
     for t in used:
         try:
             classes[t] = _message_class(rec.topic_types[t])
-        except CliError as exc:
+        except RunError as exc:
             if args.topics:          # asked for by name: an error
                 raise
             print(f'{PROG}: warning: skipping {t}: {exc}', file=sys.stderr)
     if not classes:
-        raise CliError(f'{args.file}: no topic of an installed message type to play')
+        raise RunError(f'{args.file}: no topic of an installed message type to play')
     used = sorted(classes)
     rec.messages = [m for m in rec.messages if m[1] in classes]
     import rclpy

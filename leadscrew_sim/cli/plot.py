@@ -4,8 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .args import CliError, NS, Progress
-from .replay import Resim
+from ..offline.options import NS, Progress, RunError
+from ..offline.replay import Resim
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
 
@@ -64,7 +64,7 @@ def run(args):
         parts = [cols for _seg, cols in sim.blocks(
             model, progress=Progress(sim.n_steps, 'plot', args.quiet))]
         if not parts:
-            raise CliError(f'{args.file}: no steps to plot')
+            raise RunError(f'{args.file}: no steps to plot')
         col = {name: np.concatenate([p[name] for p in parts]).astype(float)
                for name in COLUMNS}
         t = (sim.t0 + sim.dt_ns * np.arange(1, len(col['nut_position']) + 1)) / NS
@@ -92,7 +92,7 @@ def run(args):
     try:
         fig.savefig(out, dpi=args.dpi)
     except OSError as exc:
-        raise CliError(f'cannot write {out}: {exc.strerror or exc}') from None
+        raise RunError(f'cannot write {out}: {exc.strerror or exc}') from None
     plt.close(fig)
     print(f'wrote {out} ({args.width}x{args.height} px; forces and contact {source})')
     return 0

@@ -1,7 +1,7 @@
 """
 ``resim``: re-run the commands of a recording through the model and compare the states.
 
-The re-simulation is :class:`leadscrew_sim.cli.replay.Resim`: the node's
+The re-simulation is :class:`leadscrew_sim.offline.replay.Resim`: the node's
 command rules, the model in blocks. The comparison decodes the recorded
 states of each topic at once where their layout is the encoder's.
 """
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .args import (add_compression_argument, CliError, compression_of, gc_paused, parse_sets,
-                   Progress)
-from .replay import Resim
+from .args import add_compression_argument
+from ..offline.options import compression_of, gc_paused, parse_sets, Progress, RunError
+from ..offline.replay import Resim
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
 from ..io.mcap_reader import Recording
@@ -176,13 +176,13 @@ def run(args):
 def _run(args):
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
-        raise CliError('resim --set accepts physics parameters only')
+        raise RunError('resim --set accepts physics parameters only')
     sim = Resim(Recording(args.file, load_messages=False), phys_ov)
     src = Path(args.file)
     out = args.output or str(src.with_name(src.name[:-5] if src.name.endswith('.mcap')
                                            else src.name)) + '.resim.mcap'
     if os.path.abspath(out) == os.path.abspath(args.file):
-        raise CliError(f'--output {out} would overwrite the input file')
+        raise RunError(f'--output {out} would overwrite the input file')
     w = RunWriter(out, sim.prefix, params=sim.params, compression=compression_of(args))
     meta = dict(sim.meta)
     meta.update({n: str(getattr(sim.params, n)) for n in ScrewParams.names()})

@@ -14,11 +14,13 @@ import time
 
 import numpy as np
 
-from .args import (add_compression_argument, CliError, compression_of, DEFAULT_PRESET,
-                   gc_paused, load_params, NS, parse_sets, Progress)
-from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
-from .schedule import read_schedule
-from ..core import layout as L
+from .args import add_compression_argument
+from ..offline.options import (compression_of, DEFAULT_PRESET, gc_paused, load_params,
+                               NS, parse_sets, Progress, RunError)
+from ..offline.sources import (excite_profile, make_drive_source, make_force_source,
+                               make_torque_source)
+from ..offline.schedule import read_schedule
+from ..core.engine import layout as L
 from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
 from ..core.delivery import StateDelivery
 from ..core.fields import public_name
@@ -94,9 +96,9 @@ def _run(args):
     if args.duration is None:
         args.duration = profile.duration if profile is not None else 1.0
     if not (math.isfinite(rate) and 1.0 <= rate <= 1e6):
-        raise CliError(f'--rate {rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'--rate {rate} Hz must lie in [1, 1e6]')
     if not (math.isfinite(args.duration) and args.duration > 0):
-        raise CliError(f'--duration {args.duration} s must be > 0')
+        raise RunError(f'--duration {args.duration} s must be > 0')
     prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))
     dt_ns = int(round(NS / rate))
     n_steps = int(round(args.duration * NS / dt_ns))
@@ -219,7 +221,7 @@ def _apply_changes(model, hold, line, changes, w, log_time_ns):
 def _check_finite(torques, ks, dt):
     bad = np.flatnonzero(~np.isfinite(np.asarray(torques, dtype=float)))
     if len(bad):
-        raise CliError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
+        raise RunError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
 
 
 def _through_hold(hold, torques, ks, dt_ns, previous):
@@ -257,7 +259,7 @@ def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
     try:
         r = model.run(applied, forces)
     except FloatingPointError as exc:
-        raise CliError(f'simulation fault: {exc}') from None
+        raise RunError(f'simulation fault: {exc}') from None
     return torques, r
 
 
@@ -282,7 +284,7 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
         try:
             model.advance(applied, None, forces[i])
         except FloatingPointError as exc:
-            raise CliError(f'simulation fault: {exc}') from None
+            raise RunError(f'simulation fault: {exc}') from None
         for name, v in zip(names, model.joint_values()[:4] + model.truth_values()
                            + model.analysis_values()):
             cols[name][i] = v
@@ -408,7 +410,7 @@ class DriveInput:
         try:
             r = self.model.run(None, forces, commands=commands)
         except FloatingPointError as exc:
-            raise CliError(f'simulation fault: {exc}') from None
+            raise RunError(f'simulation fault: {exc}') from None
         t_cmd = t_ns
         if self.topic == 'joint_commands':
             rows = self.template.rows(t_cmd, [xs, vs])
@@ -428,7 +430,7 @@ class DriveInput:
             else:
                 reason = hold.joint_commands([self.joint], [xs[i]], [vs[i]], [], t)[1]
             if reason and reason is not DROPPED:
-                raise CliError(f'drive input at t={t / NS:.6f} s: {reason}')
+                raise RunError(f'drive input at t={t / NS:.6f} s: {reason}')
             command = hold.delayed(hold.command_at(t))
             previous = previous if command is None else command
             commands[i] = previous

@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from .drive import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
+from .engine.drive import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
 from .params import ScrewParams
 
 #: How a recording's log times relate to steps (stored in every parameters record).
@@ -173,7 +173,7 @@ class CommandHold:
         self.received += 1
         if self.drop_rate <= 0.0:
             return False
-        from .sensors import STREAM_COMMAND_DROP, uniform
+        from .engine.sensors import STREAM_COMMAND_DROP, uniform
         if uniform(self.seed, STREAM_COMMAND_DROP, n) < self.drop_rate:
             self.dropped += 1
             return True

@@ -14,7 +14,7 @@ import collections
 
 import numpy as np
 
-from .sensors import STREAM_STATE_DROP, uniform
+from .engine.sensors import STREAM_STATE_DROP, uniform
 
 
 class StateDelivery:

@@ -17,14 +17,14 @@ import math
 
 import numpy as np
 
-from . import drive as D
-from . import kernel as K
-from . import layout as L
-from . import sensors as SN
+from .engine import drive as D
+from .engine import kernel as K
+from .engine import layout as L
+from .engine import sensors as SN
 from .faults import SimulationFault
 from .views import ReportedValues
 from .output import energy_balance, series_result, step_output, stored_energy
-from .packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
+from .engine.packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
 from .params import ParameterError, ScrewParams
 
 #: Mode names accepted by :meth:`LeadScrewModel.command`, with their codes.
@@ -37,7 +37,7 @@ class LeadScrewModel(ReportedValues):
     """
     A lead screw axis: validated parameters, a state vector and step().
 
-    The state is a plain float64 array (layout in :mod:`leadscrew_sim.core.layout`);
+    The state is a plain float64 array (layout in :mod:`leadscrew_sim.core.engine.layout`);
     ``step`` advances it by exactly ``dt`` in equal substeps.
 
     Parameters

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from . import layout as L
+from .engine import layout as L
 
 CONTACT_NAMES = {1: 'leading', -1: 'trailing', 0: 'backlash'}
 

@@ -6,7 +6,7 @@ the truth of every body (:meth:`~ReportedValues.truth_values`) and the thread co
 and energy terms (:meth:`~ReportedValues.analysis_values`), read from the model's
 state and outputs without building a StepOutput. Angles and torques in the theta sense.
 """
-from . import layout as L
+from .engine import layout as L
 
 
 class ReportedValues:

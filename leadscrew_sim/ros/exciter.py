@@ -37,7 +37,7 @@ class Exciter:
 
     Parameters
     ----------
-    profile : leadscrew_sim.core.excitation.Profile
+    profile : leadscrew_sim.analysis.excitation.profiles.Profile
         What to publish.
     rate : float
         Messages per second [Hz].

@@ -45,11 +45,11 @@ from std_srvs.srv import SetBool, Trigger
 from ..core import ParameterError, ScrewParams
 from ..core.commands import COMMAND_LOG_TIME, NutMap
 from ..core.delivery import StateDelivery
-from ..core.drive import FAULT_NAMES
+from ..core.engine.drive import FAULT_NAMES
 from ..core.faults import SimulationFault
-from ..core.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
+from ..core.engine.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
 from ..core.model import LeadScrewModel
-from ..core.packing import MAX_SUBSTEPS_PER_STEP
+from ..core.engine.packing import MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder

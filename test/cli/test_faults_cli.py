@@ -226,7 +226,7 @@ def test_schedule_resim_bit_identical(source, schedule, tmp_path):
 
 def test_command_drop_counts_commands_since_start(tmp_path):
     """With fault.command_drop_rate from 0.35 s, command n is lost iff uniform(seed, 3, n) < p."""
-    from leadscrew_sim.core.sensors import STREAM_COMMAND_DROP, uniform
+    from leadscrew_sim.core.engine.sensors import STREAM_COMMAND_DROP, uniform
     p, seed, k_on = 0.2, 7, 350
     out = _simulate(tmp_path, 'drop', f'time,parameter,value\n0.35,fault.command_drop_rate,{p}\n',
                     FULL_DURATION, '--profile', 'sine', '--amplitude', 0.1, '--frequency', 2.0,

@@ -16,8 +16,8 @@ import math
 
 from helpers import cli_ok
 from leadscrew_sim import load_preset
-from leadscrew_sim.core.fit_data import Coordinate, interval_jacobian, judge
-from leadscrew_sim.core import identification as ident
+from leadscrew_sim.analysis.identify.data import Coordinate, interval_jacobian, judge
+from leadscrew_sim.analysis.identify import fit as ident
 import numpy as np
 import pytest
 from test_identify import profile, SENSORS, TOLERANCE, TRUTH

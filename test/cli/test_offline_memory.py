@@ -3,7 +3,7 @@ import platform
 
 import pytest
 
-from leadscrew_sim.cli import args
+from leadscrew_sim.offline import options as args
 
 
 @pytest.mark.skipif(platform.libc_ver()[0] != 'glibc', reason='glibc only')

@@ -108,7 +108,7 @@ def test_friction_obeys_coulomb_on_both_nut_bodies(run):
 
 def test_info_reports_the_breakaway_torques_of_an_excite_run(tmp_path):
     """``info --figures`` of a simulate --excite breakaway file gives the closed-form torques."""
-    from leadscrew_sim.core.excitation import static_breakaway
+    from leadscrew_sim.analysis.excitation.profiles import static_breakaway
     out = tmp_path / 'ba.mcap'
     cli_ok('simulate', '--excite', 'breakaway', '--set', 'backlash=0', '-q', '-o', out)
     text = cli_ok('info', out, '--figures').stdout

@@ -55,7 +55,7 @@ def test_fresh_compile_cached_load_and_plain_python_agree(tmp_path):
 PROBE = r'''
 import sys
 from leadscrew_sim import LeadScrewModel, load_preset
-from leadscrew_sim.core import kernel
+from leadscrew_sim.core.engine import kernel
 m = LeadScrewModel(load_preset('tr12x3'))
 m.advance(0.1)
 print(len(kernel.step.stats.cache_hits), len(kernel.step.stats.cache_misses))
@@ -82,7 +82,7 @@ def test_a_change_of_a_layout_constant_is_never_served_stale_from_the_cache(tmp_
         return hits, misses
     assert probe() == (0, 1)          # compiled
     assert probe() == (1, 0)          # loaded from the cache
-    with open(pkg / 'core' / 'layout.py', 'a') as fh:
+    with open(pkg / 'core' / 'engine' / 'layout.py', 'a') as fh:
         fh.write('\n# an edit of layout.py alone\n')
     assert probe() == (0, 1)          # compiled again, not served stale
     assert probe() == (1, 0)

@@ -13,7 +13,8 @@ import re
 import pytest
 
 from leadscrew_sim import core
-from leadscrew_sim.core import commands, delivery, drive, fields, presets
+from leadscrew_sim.core import commands, delivery, fields, presets
+from leadscrew_sim.core.engine import drive
 from leadscrew_sim.core.settings import RunSettings
 
 #: The public core API: model construction, stepping, running, parameters.

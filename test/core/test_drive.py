@@ -26,8 +26,8 @@ import pytest
 from scipy import signal
 
 from leadscrew_sim import LeadScrewModel, load_preset
-from leadscrew_sim.core import drive as D
-from leadscrew_sim.core import layout as L
+from leadscrew_sim.core.engine import drive as D
+from leadscrew_sim.core.engine import layout as L
 
 
 def cascade(j, h, m, n_sub, q_ref, kv, ti, kp, tmax=math.inf, vmax=math.inf, aw=True,

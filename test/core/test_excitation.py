@@ -9,7 +9,7 @@ each other bit for bit, and the topic table of the io layer.
 import math
 
 from leadscrew_sim import LeadScrewModel, load_preset
-from leadscrew_sim.core import excitation as E
+from leadscrew_sim.analysis.excitation import profiles as E
 from leadscrew_sim.core.fields import ParameterError
 from leadscrew_sim.core.params import ScrewParams
 from leadscrew_sim.io.topics import TOPICS

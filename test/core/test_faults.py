@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from leadscrew_sim import LeadScrewModel, load_preset, ScrewParams
-from leadscrew_sim.core import drive as D
+from leadscrew_sim.core.engine import drive as D
 from leadscrew_sim.core import geometry as G
 from leadscrew_sim.core.commands import CommandHold, DROPPED
 from leadscrew_sim.core.delivery import StateDelivery

@@ -12,9 +12,9 @@ the reversal error a synthetic run whose deviations are known.
 import math
 
 from leadscrew_sim import LeadScrewModel, load_preset
-from leadscrew_sim.core import figures as F
+from leadscrew_sim.analysis import figures as F
 from leadscrew_sim.core.commands import CommandHold, NutMap
-from leadscrew_sim.core.excitation import make_profile
+from leadscrew_sim.analysis.excitation.profiles import make_profile
 from leadscrew_sim.core.params import ScrewParams
 import numpy as np
 import pytest

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from leadscrew_sim import LeadScrewModel, load_preset
-from leadscrew_sim.core import identification as ident
+from leadscrew_sim.analysis.identify import fit as ident
 from leadscrew_sim.core.params import ScrewParams
 
 N = 4000                              # 4 s at 1 kHz
@@ -135,7 +135,7 @@ def test_unknown_parameter_is_refused():
 
 def test_ringing_recovers_a_damped_oscillation():
     """A free oscillation in noise: centre, displacement and rate at its end, and the noise."""
-    from leadscrew_sim.core import fit_steps
+    from leadscrew_sim.analysis.identify import steps as fit_steps
     rng = np.random.default_rng(3)
     dt, n, sigma = 1e-3, 150, 2e-5
     c, a, b, s, w = -12.5, 0.08, -0.03, -2.0, 447.0
@@ -160,8 +160,8 @@ def test_ringing_recovers_a_damped_oscillation():
 
 def test_rests_are_the_still_ends_of_long_stretches_of_zero_torque():
     """Counting: two rests of four zero-torque stretches (one too short, one with a moving nut)."""
-    from leadscrew_sim.core import fit_steps
-    from leadscrew_sim.core.drive import MODE_TORQUE
+    from leadscrew_sim.analysis.identify import steps as fit_steps
+    from leadscrew_sim.core.engine.drive import MODE_TORQUE
     dt, n = 1e-3, 5000
     effort = np.ones(n)
     zero = [(1000, 1600), (2000, 2100), (3000, 3600), (4000, 4600)]  # [a, b): the 2nd short
@@ -179,7 +179,8 @@ def test_rests_are_the_still_ends_of_long_stretches_of_zero_torque():
 
 def test_anchoring_moves_screw_and_nut_by_one_lead_and_keeps_the_gap():
     """The state after anchoring: a translation of the thread (gap kept), at rest, ringing set."""
-    from leadscrew_sim.core import fit_steps, layout as L
+    from leadscrew_sim.analysis.identify import steps as fit_steps
+    from leadscrew_sim.core.engine import layout as L
     p = load_preset('stick_slip')
     m = LeadScrewModel(p, 1e-3)
     m.run(np.concatenate([np.linspace(0, 1.2, 200), np.zeros(300)]))

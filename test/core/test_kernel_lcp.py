@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from leadscrew_sim.core import friction as F, layout as L, lcp
+from leadscrew_sim.core.engine import friction as F, layout as L, lcp
 
 RNG_SEED = 20261123
 

@@ -12,7 +12,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from leadscrew_sim.core import geometry as G
-from leadscrew_sim.core import layout as L
+from leadscrew_sim.core.engine import layout as L
 from leadscrew_sim import LeadScrewModel, load_preset, ParameterError, ScrewParams
 
 INCH = 0.0254

@@ -14,7 +14,7 @@ import pytest
 
 from leadscrew_sim import LeadScrewModel, ParameterError, ScrewParams
 from leadscrew_sim.core.fields import public_name
-from leadscrew_sim.core.packing import stiffest_mode
+from leadscrew_sim.core.engine.packing import stiffest_mode
 
 settings.register_profile('ci', derandomize=True)
 settings.register_profile('explore', derandomize=False)

@@ -29,10 +29,10 @@ import numpy as np
 import pytest
 
 from leadscrew_sim import LeadScrewModel, load_preset, ScrewParams
-from leadscrew_sim.core import drive as D
+from leadscrew_sim.core.engine import drive as D
 from leadscrew_sim.core.commands import CommandHold, DROPPED
 from leadscrew_sim.core.delivery import lost_samples, StateDelivery
-from leadscrew_sim.core.sensors import STREAM_COMMAND_DROP, uniform
+from leadscrew_sim.core.engine.sensors import STREAM_COMMAND_DROP, uniform
 
 EPS = np.finfo(float).eps
 DT = 1e-3

@@ -17,8 +17,8 @@ import sys
 
 from helpers import cli, cli_ok, NS
 from leadscrew_sim import load_preset
-from leadscrew_sim.core import figures as F
-from leadscrew_sim.core.excitation import make_profile
+from leadscrew_sim.analysis import figures as F
+from leadscrew_sim.analysis.excitation.profiles import make_profile
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import numpy as np

@@ -448,7 +448,7 @@ EXTREME_SETS = [
 
 def expected_start(overrides):
     """Return (None, nsub) if the set must run, else (parameter named, None)."""
-    from leadscrew_sim.core.packing import auto_substep, MAX_SUBSTEPS_PER_STEP
+    from leadscrew_sim.core.engine.packing import auto_substep, MAX_SUBSTEPS_PER_STEP
     from leadscrew_sim.core.params import ParameterError
     phys = {k: v for k, v in overrides.items() if k != 'update_rate'}
     try:

@@ -23,7 +23,7 @@ import signal
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from helpers import cli_ok, MS, NODE, param_msg, stamp_ns, start_node
 from leadscrew_sim.core import load_preset
-from leadscrew_sim.core.sensors import STREAM_COMMAND_DROP, STREAM_STATE_DROP, uniform
+from leadscrew_sim.core.engine.sensors import STREAM_COMMAND_DROP, STREAM_STATE_DROP, uniform
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest

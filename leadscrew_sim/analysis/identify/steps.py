@@ -40,8 +40,8 @@ import math
 
 import numpy as np
 
-from . import layout as L
-from .drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
+from ...core.engine import layout as L
+from ...core.engine.drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
 
 #: Least duration [s] of a stretch of zero torque that may hold a rest, and the window
 #: [s] at its end in which the axis must rest.

@@ -28,8 +28,8 @@ the theta sense, nut velocity and position along +x.
 """
 import math
 
-from .excitation_base import (Builder, check_speed, nut_speed_limit, stroke_room, Profile,
-                              ProfileError, Segment, STROKE_MARGIN)
+from .base import (Builder, check_speed, nut_speed_limit, stroke_room, Profile,
+                   ProfileError, Segment, STROKE_MARGIN)
 
 __all__ = ['PROFILES', 'ProfileError', 'Segment', 'make_profile', 'BreakawayRamp',
            'SpeedSweep', 'Reversals', 'Iso230', 'static_breakaway']
@@ -58,7 +58,7 @@ def static_breakaway(params, mu=None):
         apparent coefficient is ``mu`` times the thread factor.
 
     """
-    from . import geometry
+    from ...core import geometry
     p = params
     mu_app = (p.mu_s if mu is None else mu) * p.thread_factor
     lam, r = p.lead_angle, p.r_m

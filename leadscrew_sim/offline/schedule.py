@@ -10,7 +10,7 @@ applies it at the same step.
 """
 import math
 
-from .args import CliError, parse_scalar
+from .options import parse_scalar, RunError
 from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 
@@ -35,7 +35,7 @@ def read_schedule(path, params, dt_ns):
     try:
         fh = open(path, newline='')
     except OSError as exc:
-        raise CliError(f'--faults {path}: {exc.strerror or exc}') from None
+        raise RunError(f'--faults {path}: {exc.strerror or exc}') from None
     names = set(ScrewParams.names())
     steps = {}
     last_t = -math.inf
@@ -53,25 +53,25 @@ def read_schedule(path, params, dt_ns):
             except ValueError:
                 if header:
                     continue                        # a header line
-                raise CliError(f'{where}: expected "time,parameter,value", got '
+                raise RunError(f'{where}: expected "time,parameter,value", got '
                                f'{text[:60]!r}') from None
             if len(cells) != 3:
-                raise CliError(f'{where}: expected "time,parameter,value", got {text[:60]!r}')
+                raise RunError(f'{where}: expected "time,parameter,value", got {text[:60]!r}')
             if not (math.isfinite(t) and t >= 0.0):
-                raise CliError(f'{where}: time {cells[0]} s must be finite and >= 0')
+                raise RunError(f'{where}: time {cells[0]} s must be finite and >= 0')
             if t < last_t:
-                raise CliError(f'{where}: time {t} s goes backwards (previous {last_t} s)')
+                raise RunError(f'{where}: time {t} s goes backwards (previous {last_t} s)')
             last_t = t
             name = field_name(cells[1])
             if name not in names:
-                raise CliError(f"{where}: unknown parameter '{cells[1]}'")
+                raise RunError(f"{where}: unknown parameter '{cells[1]}'")
             if ScrewParams.field_info()[name][2]['read_only']:
-                raise CliError(f"{where}: '{cells[1]}' is read-only while the axis runs")
+                raise RunError(f"{where}: '{cells[1]}' is read-only while the axis runs")
             value = parse_scalar(cells[2])
             try:
                 params = ScrewParams.from_dict({name: value}, base=params)
             except ParameterError as exc:
-                raise CliError(f'{where}: {exc}') from None
+                raise RunError(f'{where}: {exc}') from None
             step = max(0, math.ceil(t * 1e9 / dt_ns - 1e-9))
             steps.setdefault(step, {})[name] = getattr(params, name)
     return sorted(steps.items())

@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from .args import CliError, NS
+from .options import NS, RunError
 from .replay_events import RecordedEvents
 from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
-from ..core import layout as L
+from ..core.engine import layout as L
 from ..core.delivery import StateDelivery
 from ..core.params import ParameterError, ScrewParams
 from ..io import messages as M, topics as T
@@ -65,7 +65,7 @@ class Resim:
         try:
             params, self.missing = params_from_record(meta)
         except ParameterError as exc:
-            raise CliError(f'{rec.path}: recorded {exc}') from None
+            raise RunError(f'{rec.path}: recorded {exc}') from None
         self.params = ScrewParams.from_dict(self.overrides, base=params) \
             if self.overrides else params
         try:
@@ -75,7 +75,7 @@ class Resim:
             self.decimation = max(1, run_setting(meta, 'publish_decimation', 1))
             self.timeout = run_setting(meta, 'command_timeout', 0.0)
         except ValueError as exc:
-            raise CliError(f'{rec.path}: bad run settings in the parameters record: '
+            raise RunError(f'{rec.path}: bad run settings in the parameters record: '
                            f'{exc}') from None
         self.prefix = run_setting(meta, 'joint_prefix', '')
         self.joint_command_mode = run_setting(meta, 'joint_command_mode', 'auto')
@@ -155,7 +155,7 @@ class Resim:
                     log_time = int(data['log_time_ns'])
                     before = int(data.get('messages_at_log_time', -1))
                 except ValueError as exc:
-                    raise CliError(f'{self.rec.path}: bad "{name}" metadata record: '
+                    raise RunError(f'{self.rec.path}: bad "{name}" metadata record: '
                                    f'{exc}') from None
                 items.append((log_time, name, data))
                 # after the first `before` messages of its log time; else after all
@@ -242,7 +242,7 @@ class Resim:
                 try:
                     cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b])
                 except FloatingPointError as exc:
-                    raise CliError(f'simulation fault in steps {part.k0}..{part.k1 - 1}: '
+                    raise RunError(f'simulation fault in steps {part.k0}..{part.k1 - 1}: '
                                    f'{exc}') from None
                 yield part, cols
                 if progress is not None:
@@ -333,7 +333,7 @@ class Resim:
             try:
                 params = ScrewParams.from_text(changes, base=model.params)
             except ParameterError as exc:
-                raise CliError(f'{self.rec.path}: recorded {exc}') from None
+                raise RunError(f'{self.rec.path}: recorded {exc}') from None
             model.set_params(params)
             if line is not None:
                 line.set_faults(params)

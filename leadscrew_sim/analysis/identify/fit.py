@@ -25,12 +25,12 @@ import time
 
 import numpy as np
 
-from .params import ScrewParams
-from . import fit_data as V
-from .fit_search import local_fit, profiled, restart_fit, scanned, spread, SCAN_ABOVE
-from .fit_data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
-                       noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
-                       sensor_sigma, SIGNALS)
+from ...core.params import ScrewParams
+from . import data as V
+from .search import local_fit, profiled, restart_fit, scanned, spread, SCAN_ABOVE
+from .data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
+                   noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
+                   sensor_sigma, SIGNALS)
 
 __all__ = ['Coordinate', 'DEFAULT_FIT', 'FitResult', 'FITTABLE', 'IDEAL_SENSORS', 'LEVEL',
            'Measurements', 'NULL_BIAS', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates',

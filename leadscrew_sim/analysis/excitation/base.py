@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .fields import ParameterError
+from ...core.fields import ParameterError
 
 __all__ = ['Builder', 'Profile', 'ProfileError', 'Segment', 'STROKE_MARGIN', 'TOPICS', 'UNITS',
            'check_speed', 'nut_speed_limit', 'stroke_room']

@@ -1,14 +1,14 @@
 """
 The pass of a recording's events through the node's CommandHold: the drive command of each step.
 
-:meth:`leadscrew_sim.cli.replay.Resim.inputs` runs it once. Runs of one
+:meth:`leadscrew_sim.offline.replay.Resim.inputs` runs it once. Runs of one
 std_msgs/Float64 drive command per step with no timeout, delay or loss are
 taken in one vectorised go, with the same doubles CommandHold forms; all
 else goes event by event, step by step, through CommandHold itself.
 """
 import numpy as np
 
-from .args import CliError, NS
+from .options import NS, RunError
 from ..core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
 from ..core.params import ParameterError, ScrewParams
 from ..io import cdr as C
@@ -154,7 +154,7 @@ class CommandPass:
             try:
                 params = ScrewParams.from_text(changes, base=self.model.params)
             except ParameterError as exc:
-                raise CliError(f'{sim.rec.path}: recorded {exc}') from None
+                raise RunError(f'{sim.rec.path}: recorded {exc}') from None
             self.model.set_params(params)
             hold.set_faults(params)
             if 'command_timeout' in data and sim.clock_mode != 'realtime':

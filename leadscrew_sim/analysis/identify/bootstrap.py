@@ -11,9 +11,9 @@ import dataclasses
 
 import numpy as np
 
-from ..core import identification as ident
-from ..core.fit_data import REL_MAX, t_quantile
-from ..core.params import ScrewParams
+from . import fit as ident
+from .data import REL_MAX, t_quantile
+from ...core.params import ScrewParams
 
 
 #: Synthetic recordings of the parametric bootstrap of the intervals, and how far from the

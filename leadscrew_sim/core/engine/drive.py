@@ -32,7 +32,7 @@ import numpy as np
 
 from ._jit import kernel_jit
 from . import layout as L
-from .params import DRIVE_FEEDBACKS
+from ..params import DRIVE_FEEDBACKS
 
 MODE_TORQUE = 0         #: cyclic synchronous torque: the command torque
 MODE_VELOCITY = 1       #: cyclic synchronous velocity: w_ref = the command rate

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from .args import check_finite, CliError
+from .options import check_finite, parse_options, RunError
 from ..core.commands import CommandHold
 
 
@@ -13,7 +13,7 @@ def read_csv_series(path, what):
     try:
         fh = open(path, newline='')
     except OSError as exc:
-        raise CliError(f'{what} CSV {path}: {exc.strerror or exc}') from None
+        raise RunError(f'{what} CSV {path}: {exc.strerror or exc}') from None
     times, values = [], []
     with fh:
         for lineno, line in enumerate(fh, 1):
@@ -28,17 +28,17 @@ def read_csv_series(path, what):
             except ValueError:
                 if not times and lineno == 1 and not _numeric(cells[0]):
                     continue                        # header line
-                raise CliError(f'{what} CSV {path}, line {lineno}: expected "time,value" '
+                raise RunError(f'{what} CSV {path}, line {lineno}: expected "time,value" '
                                f'with two numbers, got {text[:60]!r}') from None
             if not (math.isfinite(t) and math.isfinite(v)):
-                raise CliError(f'{what} CSV {path}, line {lineno}: non-finite number')
+                raise RunError(f'{what} CSV {path}, line {lineno}: non-finite number')
             if times and t < times[-1]:
-                raise CliError(f'{what} CSV {path}, line {lineno}: time {t} s goes backwards '
+                raise RunError(f'{what} CSV {path}, line {lineno}: time {t} s goes backwards '
                                f'(previous {times[-1]} s)')
             times.append(t)
             values.append(v)
     if not times:
-        raise CliError(f'{what} CSV {path}: no data rows')
+        raise RunError(f'{what} CSV {path}: no data rows')
     return times, values
 
 
@@ -167,11 +167,10 @@ def excite_profile(args, params):
     """Return the identification profile of ``--excite`` (None without it)."""
     if getattr(args, 'excite', None) is None:
         if getattr(args, 'excite_opt', None):
-            raise CliError('--excite-opt needs --excite PROFILE')
+            raise RunError('--excite-opt needs --excite PROFILE')
         return None
-    from ..core.excitation import make_profile
-    from .excite import parse_options
-    return make_profile(args.excite, params, **parse_options(args.excite_opt))
+    from ..analysis.excitation.profiles import make_profile
+    return make_profile(args.excite, params, **parse_options(args.excite_opt, '--excite-opt'))
 
 
 def make_torque_source(args, params, profile=None):
@@ -187,7 +186,7 @@ def make_torque_source(args, params, profile=None):
     if profile is not None:
         chosen.append('--excite')
     if len(chosen) > 1:
-        raise CliError(f'give only one torque input, not {" and ".join(chosen)}')
+        raise RunError(f'give only one torque input, not {" and ".join(chosen)}')
     if profile is not None:
         return profile.torque_source(), profile.describe()
     if args.torque_csv is not None:
@@ -220,7 +219,7 @@ def _move_source(args, params):
     """Return the closed-loop torque source of ``--profile move`` and its description."""
     target = args.target if args.target is not None else params.initial_position + 0.01
     if not params.stroke_min <= target <= params.stroke_max:
-        raise CliError(f'--target {target} m lies outside the stroke '
+        raise RunError(f'--target {target} m lies outside the stroke '
                        f'[{params.stroke_min}, {params.stroke_max}] m')
     ctl = MoveController(params, target, args.speed)
 
@@ -234,7 +233,7 @@ def _move_source(args, params):
 def make_force_source(args):
     """Return ``fn(t) -> external force [N]`` (None: no force input) and a description."""
     if args.force is not None and args.force_csv is not None:
-        raise CliError('give only one of --force and --force-csv')
+        raise RunError('give only one of --force and --force-csv')
     if args.force_csv is not None:
         times, values = read_csv_series(args.force_csv, 'force')
         for t, v in zip(times, values):
@@ -249,10 +248,10 @@ def make_force_source(args):
 
 
 def _check_force(what, value):
-    """Raise CliError for an external force [N] the node's command rules reject."""
+    """Raise RunError for an external force [N] the node's command rules reject."""
     reason = CommandHold().external_force(value)
     if reason is not None:
-        raise CliError(f'{what}: {reason}')
+        raise RunError(f'{what}: {reason}')
 
 
 class ProfileSeries:
@@ -365,7 +364,7 @@ def make_drive_source(args, params, profile=None):
     if args.profile not in (None, 'trapezoid'):
         torque.append(f'--profile {args.profile}')
     if len(chosen) + len(torque) > 1:
-        raise CliError(f'give only one input, not {" and ".join(chosen + torque)}')
+        raise RunError(f'give only one input, not {" and ".join(chosen + torque)}')
     if profile is not None:
         held = ProfileSeries(profile)
         source = DriveSource(held, None) if profile.kind == 'position' else DriveSource(
@@ -396,7 +395,7 @@ def make_drive_source(args, params, profile=None):
     for name, value in (('--speed', args.speed), ('--accel', args.accel)):
         check_finite(name, value)
         if not value > 0:
-            raise CliError(f'{name} {value} must be > 0')
+            raise RunError(f'{name} {value} must be > 0')
     move = Trapezoid(params.initial_position, target, args.speed, args.accel)
     return move, 'joint_commands', (f'profile=trapezoid target={target} speed={args.speed} '
                                     f'accel={args.accel}')
@@ -404,5 +403,5 @@ def make_drive_source(args, params, profile=None):
 
 def _check_stroke(what, x, params):
     if not params.stroke_min <= x <= params.stroke_max:
-        raise CliError(f'{what} {x} m lies outside the stroke '
+        raise RunError(f'{what} {x} m lies outside the stroke '
                        f'[{params.stroke_min}, {params.stroke_max}] m')
