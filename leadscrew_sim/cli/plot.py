@@ -1,5 +1,4 @@
 """``plot``: one PNG with four panels of a leadscrew_sim recording (forces from the file)."""
-import math
 from pathlib import Path
 
 import numpy as np
@@ -132,7 +131,7 @@ def _force_panel(ax, t, col):
 
 def _backlash_panel(ax, col, p):
     """Nut position minus its nominal x(theta) [um] over the screw angle [rad]."""
-    rt = p.lead / (2.0 * math.pi)
+    rt = p.lead_ratio
     dev = col['nut_position'] - rt * p.hand_sign * col['screw_angle']
     ax.plot(col['screw_angle'], dev * 1e6, 'C0', lw=0.8)
     ax.axhline(0.5 * p.backlash * 1e6, color='0.5', ls='--', lw=0.8)

@@ -20,7 +20,6 @@ from ..offline.options import (compression_of, DEFAULT_PRESET, gc_paused, load_p
 from ..offline.sources import (excite_profile, make_drive_source, make_force_source,
                                make_torque_source)
 from ..offline.schedule import read_schedule
-from ..core.engine import layout as L
 from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
 from ..core.delivery import StateDelivery
 from ..core.fields import public_name
@@ -164,7 +163,7 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
     line = StateDelivery(model.params)
     o = model.output()
     x, vm = o.nut_position, 0.0
-    vm_scale = model.params.hand_sign * model.params.lead / (2.0 * math.pi)
+    vm_scale = model.params.hand_sign * model.params.lead_ratio
     stats = dict(x_min=x, x_max=x, x_end=x, tq_max=0.0)
     force = 0.0
     cuts = sorted({k for k in range(0, n_steps, BLOCK_TICKS)}
@@ -252,8 +251,7 @@ def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
     _check_finite(torques, ks, dt)
     applied = torques
     if hold.delay or hold.drop_rate:
-        applied = _through_hold(hold, torques, ks, dt_ns, model.state[L.S_CT] *
-                                model.params.hand_sign + 0.0)
+        applied = _through_hold(hold, torques, ks, dt_ns, model.held_torque())
     else:
         _count(hold, torques, ks, dt_ns)
     try:
@@ -271,7 +269,7 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
     cols = {name: np.empty(n) for name in names}
     torques = []
     lossy = hold.delay or hold.drop_rate
-    applied = model.state[L.S_CT] * model.params.hand_sign + 0.0
+    applied = model.held_torque()
     for i, k in enumerate(ks):
         tq = float(torque_fn(k, k * dt, x, vm))
         _check_finite([tq], [k], dt)

@@ -401,6 +401,65 @@ class LeadScrewModel(ReportedValues):
             drive_torque=float(hs * s[L.S_DTOUT]) + 0.0,
             velocity_reference=float(hs * s[L.S_DWREF]) + 0.0 if mode != D.MODE_TORQUE else 0.0)
 
+    def held_command(self):
+        """
+        Return the held drive command as a command row (mode, position, velocity, effort).
+
+        The row is what :meth:`run`'s ``commands`` take: the ``drive.MODE_*``
+        code, the target angle [rad], the rate [rad/s] and the torque [N m],
+        theta sense, as the command rules converted them.
+        """
+        s, hs = self.state, self.params.hand_sign
+        return (s[L.S_CMODE], hs * s[L.S_CQ], hs * s[L.S_CW], hs * s[L.S_CT])
+
+    def held_torque(self):
+        """Return the held command's torque [N m], theta sense (+0.0 for a zero)."""
+        return self.state[L.S_CT] * self.params.hand_sign + 0.0
+
+    def switches(self):
+        """Return the switches (limit_min, limit_max, home) after the last step: 0.0 or 1.0."""
+        s = self.state
+        return (s[L.S_SWMIN], s[L.S_SWMAX], s[L.S_HOME])
+
+    def drive_fault(self):
+        """Return the latched drive fault's ``drive.FAULT_*`` code (``FAULT_NONE``: none)."""
+        return int(self.state[L.S_DFAULT])
+
+    def place_at_rest(self, theta, motor_offset, motor_rate):
+        """
+        Move the axis onto a rest, in place: screw at theta, screw and nut still.
+
+        The nut positions and the scale reading move with the screw through the
+        lead (the contact gap is kept); the motor is put at theta +
+        motor_offset with rate motor_rate (its encoder moves with it).
+
+        Parameters
+        ----------
+        theta : float
+            Screw angle [rad], theta sense.
+        motor_offset : float
+            Motor angle less the screw angle [rad], theta sense.
+        motor_rate : float
+            Motor rate [rad/s], theta sense.
+
+        """
+        s, hs = self.state, self.params.hand_sign
+        ratio = self.params.lead_ratio
+        q = hs * theta
+        dq = q - s[L.S_Q]
+        s[L.S_Q] = q
+        s[L.S_DQ] = 0.0
+        for x, v in ((L.S_XA, L.S_VA), (L.S_XB, L.S_VB)):
+            s[x] += dq * ratio
+            s[v] = 0.0
+        s[L.S_XS] += dq * ratio
+        s[L.S_VS] = 0.0
+        qm = q + hs * motor_offset
+        s[L.S_EQ] += qm - s[L.S_QM]
+        s[L.S_QM] = qm
+        s[L.S_WM] = hs * motor_rate
+        s[L.S_EW] = s[L.S_WM]
+
     def nut_to_motor(self, x):
         """
         Return the motor angle [rad] (theta sense) that puts the nut at x by the rigid kinematics.

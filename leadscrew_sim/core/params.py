@@ -193,6 +193,11 @@ class ScrewParams(Schema):
         return geometry.lead(self.pitch, self.starts)
 
     @property
+    def lead_ratio(self):
+        """Nut travel per screw angle l / (2 pi) [m/rad]."""
+        return self.lead / (2.0 * math.pi)
+
+    @property
     def mean_diameter(self):
         """Effective pitch diameter d_m [m]."""
         return self.pitch_diameter or geometry.pitch_diameter(self.major_diameter, self.pitch)

@@ -16,7 +16,6 @@ import numpy as np
 from .options import NS, RunError
 from .replay_events import RecordedEvents
 from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
-from ..core.engine import layout as L
 from ..core.delivery import StateDelivery
 from ..core.params import ParameterError, ScrewParams
 from ..io import messages as M, topics as T
@@ -225,7 +224,6 @@ class Resim:
         """
         segments, commands, forces = self.inputs()
         keep = set(self.overrides) | set(overrides or ())
-        hs = model.params.hand_sign
         for seg in segments:
             for kind, data in seg.events:
                 self._apply_model(kind, data, model, line, keep)
@@ -234,9 +232,8 @@ class Resim:
             rows = commands[seg.k0:seg.k1]
             held = np.isnan(rows[:, 0])
             if held.any():
-                s = model.state
                 rows = rows.copy()
-                rows[held] = (s[L.S_CMODE], hs * s[L.S_CQ], hs * s[L.S_CW], hs * s[L.S_CT])
+                rows[held] = model.held_command()
             for part in _parts(seg, block_ticks):
                 a, b = part.k0 - seg.k0, part.k1 - seg.k0
                 try:

@@ -128,7 +128,7 @@ class MoveController:
         self.x0 = params.initial_position
         self.target = target
         self.speed = abs(speed)
-        self.rt = params.lead / (2.0 * math.pi)
+        self.rt = params.lead_ratio
         mass = params.moving_mass + (params.motor_inertia + params.screw_inertia) / self.rt ** 2
         w = 2.0 * math.pi * bandwidth
         self.kp, self.kd, self.ki = 3.0 * mass * w * w, 3.0 * mass * w, mass * w ** 3

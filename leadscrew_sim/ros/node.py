@@ -47,7 +47,6 @@ from ..core.commands import COMMAND_LOG_TIME, NutMap
 from ..core.delivery import StateDelivery
 from ..core.engine.drive import FAULT_NAMES
 from ..core.faults import SimulationFault
-from ..core.engine.layout import S_DFAULT, S_HOME, S_SWMAX, S_SWMIN
 from ..core.model import LeadScrewModel
 from ..core.engine.packing import MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
@@ -318,12 +317,12 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             return
         self.n += 1
         self._publish_states(self.n % self.settings.publish_decimation == 0)
-        state = model.state
-        switches = (state[S_SWMIN], state[S_SWMAX], state[S_HOME])
+        switches = model.switches()
         if switches != self._switches or self.n % self._switch_period == 0:
             self._publish_switches(switches)       # on a change and at 10 Hz
-        if state[S_DFAULT] != self._fault_seen:
-            self._log_fault(int(state[S_DFAULT]))
+        fault = model.drive_fault()
+        if fault != self._fault_seen:
+            self._log_fault(fault)
         if self._pub_clock is not None:
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
 

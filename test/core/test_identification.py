@@ -187,7 +187,7 @@ def test_anchoring_moves_screw_and_nut_by_one_lead_and_keeps_the_gap():
     s0 = m.state.copy()
     hs, ratio = p.hand_sign, p.lead / (2 * math.pi)
     rest = fit_steps.Rest(0, 499, centre=-40.0, amp_a=0.05, amp_b=0.0, s=0.0, w=447.0)
-    fit_steps.anchor(m.state, rest, 0.5, hs, ratio, m.dt / m.nsub, rigid=False)
+    fit_steps.anchor(m, rest, 0.5)
     s1 = m.state
     q = hs * (-40.0 - 0.5)                         # the centre in the model's frame, q sense
     assert s1[L.S_Q] == q

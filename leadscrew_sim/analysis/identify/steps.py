@@ -40,7 +40,6 @@ import math
 
 import numpy as np
 
-from ...core.engine import layout as L
 from ...core.engine.drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
 
 #: Least duration [s] of a stretch of zero torque that may hold a rest, and the window
@@ -257,9 +256,9 @@ def find_rests(commands, angle, sigma_angle, dt, position=None, sigma_position=N
     return out
 
 
-def anchor(state, rest, offset, hand_sign, ratio, h, rigid, kick=(0.0, 0.0)):
+def anchor(model, rest, offset, kick=(0.0, 0.0)):
     """
-    Move a model state after step ``rest.k`` onto the recorded rest, in place.
+    Move a model's state after step ``rest.k`` onto the recorded rest, in place.
 
     The screw angle becomes the recorded centre, the nut positions and the
     scale reading move with it through the lead (the contact gap is kept),
@@ -268,41 +267,20 @@ def anchor(state, rest, offset, hand_sign, ratio, h, rigid, kick=(0.0, 0.0)):
 
     Parameters
     ----------
-    state : numpy.ndarray
-        ``LeadScrewModel.state``.
+    model : LeadScrewModel
+        The model, after step ``rest.k``.
     rest : Rest
         The rest.
     offset : float
         The encoder's reading less the re-simulated motor angle [rad] (theta
         sense): the zero of the encoder.
-    hand_sign : float
-        +1 or -1: the q sense of the state against theta.
-    ratio : float
-        Nut travel per screw angle [m/rad].
-    h : float
-        The model's substep [s].
-    rigid : bool
-        The coupling is rigid (the motor is the screw).
     kick : tuple of float
         Added to the motor's displacement [rad] and rate [rad/s] (a perturbation).
 
     """
-    s = state
-    q = hand_sign * (rest.centre - offset)
-    dq = q - s[L.S_Q]
-    s[L.S_Q] = q
-    s[L.S_DQ] = 0.0
-    for x, v in ((L.S_XA, L.S_VA), (L.S_XB, L.S_VB)):
-        s[x] += dq * ratio
-        s[v] = 0.0
-    s[L.S_XS] += dq * ratio
-    s[L.S_VS] = 0.0
-    ring, rate = (0.0, 0.0) if rigid else rest.motor(h)
-    qm = q + hand_sign * (ring + kick[0])
-    s[L.S_EQ] += qm - s[L.S_QM]
-    s[L.S_QM] = qm
-    s[L.S_WM] = hand_sign * (rate + kick[1])
-    s[L.S_EW] = s[L.S_WM]
+    rigid = model.params.coupling_stiffness == 0.0
+    ring, rate = (0.0, 0.0) if rigid else rest.motor(model.dt / model.nsub)
+    model.place_at_rest(rest.centre - offset, ring + kick[0], rate + kick[1])
 
 
 #: Relative steps of the intervals' Jacobian of a fit restarted at rests: below 1e-3 its
@@ -367,16 +345,12 @@ class Anchoring:
         rows = np.array(commands[:n], dtype=float)
         held = np.isnan(rows[:, 0])
         if held.any():
-            s, hs = model.state, model.params.hand_sign
-            rows[held] = (s[L.S_CMODE], hs * s[L.S_CQ], hs * s[L.S_CW], hs * s[L.S_CT])
-        hs, ratio = model.params.hand_sign, model.params.lead / (2.0 * math.pi)
-        h, rigid = model.dt / model.nsub, model.params.coupling_stiffness == 0.0
+            rows[held] = model.held_command()
         cuts = self.cuts(len(commands))
         parts, a, offset = [], 0, 0.0
         for j, b in enumerate([c for c in cuts if c < n] + [n]):
             if j > 0:
-                anchor(model.state, self.rests[j - 1], offset, hs, ratio, h, rigid,
-                       (kicks or {}).get(j - 1, (0.0, 0.0)))
+                anchor(model, self.rests[j - 1], offset, (kicks or {}).get(j - 1, (0.0, 0.0)))
             if b > a:
                 parts.append(model.run(None, forces[a:b], commands=rows[a:b]))
             if j == 0:
