@@ -5,6 +5,7 @@ Any ros2-profile file is read; :meth:`Recording.require_ours` tells a
 leadscrew_sim run file (:mod:`.run_file`) from others.
 """
 from concurrent.futures import ThreadPoolExecutor
+import os
 import struct
 import zlib
 
@@ -13,11 +14,40 @@ from mcap.reader import make_reader
 import numpy as np
 import zstandard
 
+from .mcap_scan import MAX_CHUNK_BYTES, scan
 from .mcap_writer import MAGIC
 from .run_file import PARAMS_RECORD
 from .topics import TOPICS
 
 __all__ = ['Recording', 'RecordingError', 'TopicArrays']
+
+
+def _detail(exc):
+    """Return the first line of an exception's message (or its class name)."""
+    return str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+
+
+class _Bounded:
+    """
+    A binary file whose reads never ask for more than the bytes that remain.
+
+    A corrupt length field then costs at most the file's size in memory,
+    never the length it claims.
+    """
+
+    def __init__(self, fh):
+        """Wrap the open file ``fh``."""
+        self._fh = fh
+        self._size = os.fstat(fh.fileno()).st_size
+
+    def read(self, n=-1):
+        """Read at most ``n`` bytes, and never past the end of the file."""
+        rest = max(0, self._size - self._fh.tell())
+        return self._fh.read(rest if n is None or n < 0 else min(n, rest))
+
+    def __getattr__(self, name):
+        """Everything else as the file does."""
+        return getattr(self._fh, name)
 
 
 class RecordingError(ValueError):
@@ -29,7 +59,10 @@ class Recording:
     A fully read MCAP file: header, channels, metadata and the messages in log-time order.
 
     ``messages`` holds ``(log_time [ns], topic, data)``; messages of one log
-    time keep their file order.
+    time keep their file order. A file cut short by a crash (no summary, an
+    incomplete last record) or damaged after some point is read up to its
+    last whole chunk: :attr:`cut` then says where it stops and what was read
+    (empty for a whole file), and :attr:`summary` is None.
 
     Parameters
     ----------
@@ -43,7 +76,7 @@ class Recording:
     """
 
     def __init__(self, path, topics=None, load_messages=True):
-        """Read ``path``; raise RecordingError for missing, truncated or corrupt files."""
+        """Read ``path``; raise RecordingError for missing, non-MCAP or unreadable files."""
         self.path = str(path)
         try:
             fh = open(self.path, 'rb')
@@ -55,13 +88,11 @@ class Recording:
             if fh.read(8) != MAGIC:
                 raise RecordingError(f'{self.path}: not an MCAP file (bad magic bytes)')
             fh.seek(0)
+            self.cut = ''
             try:
-                self._read(fh, topics, load_messages)
+                self._read(_Bounded(fh), topics, load_messages)
             except Exception as exc:  # noqa: B902 - mcap raises many kinds on bad data
-                detail = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
-                raise RecordingError(f'{self.path}: truncated or corrupt MCAP file ({detail}); '
-                                     'a truncated recording can be repaired with '
-                                     'leadscrew_sim.io.session.recover()') from None
+                self._read_cut(topics, load_messages, _detail(exc))
         self.profile = self.header.profile
         self.topic_types = {c.topic: self.schemas[c.schema_id].name if c.schema_id in
                             self.schemas else '' for c in self.channels.values()}
@@ -76,15 +107,17 @@ class Recording:
             The topics to read.
 
         """
+        if self.cut:
+            self._read_cut(topics, True, self.cut)
+            return
         try:
             with open(self.path, 'rb') as fh:
-                self._read(fh, topics, True)
+                self._read(_Bounded(fh), topics, True)
         except OSError as exc:
             raise RecordingError(f'{self.path}: {exc.strerror or exc}') from None
         except Exception as exc:  # noqa: B902 - mcap raises many kinds on bad data
-            detail = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
-            raise RecordingError(f'{self.path}: truncated or corrupt MCAP file ({detail})') \
-                from None
+            raise RecordingError(f'{self.path}: truncated or corrupt MCAP file '
+                                 f'({_detail(exc)})') from None
 
     def topic_arrays(self, topics):
         """
@@ -100,9 +133,11 @@ class Recording:
             Recorded topic names.
 
         """
+        if self.summary is None:
+            return None
         try:
             with open(self.path, 'rb') as fh:
-                return _topic_arrays(fh, self.summary, topics)
+                return _topic_arrays(_Bounded(fh), self.summary, topics)
         except OSError as exc:
             raise RecordingError(f'{self.path}: {exc.strerror or exc}') from None
         except (ValueError, struct.error, zstandard.ZstdError, RuntimeError) as exc:
@@ -132,6 +167,37 @@ class Recording:
                     if want is None or channel.topic in want:
                         msgs.append((msg.log_time, channel.topic, msg.data))
             msgs.sort(key=_log_time)        # stable: ties keep file order
+
+    def _read_cut(self, topics, load_messages, why):
+        """
+        Read a file without a readable summary front to back, up to its last whole chunk.
+
+        Sets :attr:`cut` to where the file stops being whole and what was read
+        (:attr:`summary` is None); raises RecordingError when nothing whole is left.
+        """
+        try:
+            found = scan(self.path)
+        except (OSError, ValueError) as exc:
+            raise RecordingError(f'{self.path}: {exc}') from None
+        if found.header is None or not found.channels:
+            raise RecordingError(f'{self.path}: truncated or corrupt MCAP file ({why}; '
+                                 f'{found.problem or "no channel"}): nothing whole to read')
+        self.header, self.summary = found.header, None
+        self.metadata = list(found.metadata)
+        self.channels, self.schemas = dict(found.channels), dict(found.schemas)
+        self.messages = []
+        if load_messages:
+            want = set(topics) if topics else None
+            topic_of = {cid: c.topic for cid, c in found.channels.items()}
+            self.messages = [(m[0], topic_of[m[1]], m[2]) for m in found.messages
+                             if m[1] in topic_of and (want is None or topic_of[m[1]] in want)]
+            self.messages.sort(key=_log_time)
+        times = [m[0] for m in found.messages]
+        span = (f', log time {min(times) / 1e9:.3f} .. {max(times) / 1e9:.3f} s'
+                if times else '')
+        self.cut = (f'{found.problem or "its summary is unreadable"}; read '
+                    f'{len(found.messages)} messages{span}, up to byte {found.end} of '
+                    f'{found.size}')
 
     def record(self, name):
         """Return the first metadata record called ``name`` (or None)."""
@@ -249,10 +315,13 @@ def _decoded(raw, index, zstd):
     at += 4 + n
     n = _U64.unpack_from(raw, at)[0]
     packed = memoryview(raw)[at + 8:at + 8 + n]
+    if size > MAX_CHUNK_BYTES:
+        raise ValueError(f'chunk at offset {index.chunk_start_offset}: {size} B uncompressed '
+                         f'exceeds the bound of {MAX_CHUNK_BYTES} B')
     if compression == 'zstd':
         data = zstd.decompress(packed, max_output_size=size)
     elif compression == 'lz4':
-        data = lz4.frame.decompress(packed)
+        data = lz4.frame.LZ4FrameDecompressor().decompress(packed, max_length=size)
     elif compression == '':
         data = bytes(packed)
     else:

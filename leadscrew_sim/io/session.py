@@ -13,10 +13,8 @@ import re
 import time
 from pathlib import Path
 
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
-
 from ..core.settings import MIN_SPLIT_BYTES, PREFIX_RE
+from .mcap_scan import scan
 from .mcap_file import Guarded, McapRecorder, one_line_error, ROSBAG2_METADATA_NAME
 from .msgdefs import full_type_name, ros2msg_definition
 from .qos import DEFAULT_QOS
@@ -290,39 +288,53 @@ class RecordingSession(Guarded):
 
 def recover(src, dst):
     """
-    Rewrite a truncated MCAP file (e.g. of a killed recorder) as a complete one.
+    Rewrite an MCAP file cut short (e.g. of a killed recorder) as a complete one.
 
-    Reads ``src`` front to back until the first incomplete or corrupt record
-    and writes every complete message, with its schema, channel and the
-    metadata records, to ``dst``. Returns the number of messages recovered.
-    Raises ``OSError`` if ``src`` cannot be read or ``dst`` cannot be written.
+    Reads ``src`` front to back up to its first record that is not whole
+    (:func:`leadscrew_sim.io.mcap_scan.scan`) and writes every whole message,
+    with its schema, channel and the metadata records, to ``dst`` with a full
+    summary. ``src`` is not changed.
+
+    Parameters
+    ----------
+    src, dst : str or Path
+        The cut file and the repaired copy (a different path).
+
+    Returns
+    -------
+    Scan
+        What was read: its ``messages`` were written; ``end``, ``size`` and
+        ``problem`` say where and why the source stops being whole.
+
+    Raises
+    ------
+    OSError
+        If ``src`` cannot be read or ``dst`` cannot be written.
+    ValueError
+        If ``dst`` is ``src`` or ``src`` is not an MCAP file.
+
     """
     if os.path.abspath(src) == os.path.abspath(dst):
         raise ValueError('recover() needs a destination different from the source')
-    with open(src, 'rb') as f:
-        out = McapRecorder(dst, flush_interval=math.inf)
-        schemas, channels, count = {}, {}, 0
-        try:
-            for record in StreamReader(f, record_size_limit=1 << 30).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel) and record.id not in channels:
-                    schema = schemas.get(record.schema_id)
-                    if schema is None:
-                        continue
-                    meta = dict(record.metadata)
-                    channels[record.id] = out._register(
-                        record.topic, schema.name, schema.encoding, schema.data,
-                        meta.get('offered_qos_profiles', DEFAULT_QOS), meta)
-                elif isinstance(record, Message) and record.channel_id in channels:
-                    out.write(channels[record.channel_id], record.data, record.log_time,
-                              record.publish_time, _sequence=record.sequence)
-                    count += 1
-                elif isinstance(record, Metadata) and record.name != ROSBAG2_METADATA_NAME:
-                    out.add_metadata(record.name, record.metadata)
-        except Exception:  # noqa: B902 - the first truncated/corrupt record ends the data
-            pass
-        out.close()
+    found = scan(src)
+    out = McapRecorder(dst, flush_interval=math.inf)
+    channels = {}
+    for cid, record in found.channels.items():
+        schema = found.schemas.get(record.schema_id)
+        if schema is None:
+            continue
+        meta = dict(record.metadata)
+        channels[cid] = out._register(
+            record.topic, schema.name, schema.encoding, schema.data,
+            meta.get('offered_qos_profiles', DEFAULT_QOS), meta)
+    for name, data in found.metadata:
+        if name != ROSBAG2_METADATA_NAME:
+            out.add_metadata(name, data)
+    for log_time, cid, data, publish_time, sequence in found.messages:
+        if cid in channels:
+            out.write(channels[cid], data, log_time, publish_time, _sequence=sequence)
+    out.close()
     if out.error:
         raise OSError(out.error)
-    return count
+    found.messages = [m for m in found.messages if m[1] in channels]
+    return found

@@ -592,7 +592,7 @@ def test_disk_full_keeps_publishing_and_leaves_a_recoverable_file(run_exe, ros, 
         except Exception:  # noqa: B902 - a cut file may raise anything
             complete = False
     fixed = tmp_path / 'fixed.mcap'
-    n = recover(files[0], fixed)
+    n = len(recover(files[0], fixed).messages)
     with open(fixed, 'rb') as f:
         got = [(c.topic, m.log_time) for _s, c, m in make_reader(f).iter_messages(
             log_time_order=False)]
@@ -621,7 +621,7 @@ def test_sigkill_mid_recording_recovers_up_to_the_flush_bound(run_exe, ros, tmp_
     files = sorted((tmp_path / 'rec').glob('hard_*.mcap'))
     assert len(files) == 1, files
     fixed = tmp_path / 'fixed.mcap'
-    n = recover(files[0], fixed)
+    n = len(recover(files[0], fixed).messages)
     with open(fixed, 'rb') as f:
         js = sorted(m.log_time for _s, c, m in make_reader(f).iter_messages(
             log_time_order=False) if c.topic == '/joint_states')
