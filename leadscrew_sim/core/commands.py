@@ -477,18 +477,6 @@ class CommandHold:
             out = older if older is not None else out
         return out
 
-    def applied_torque(self, now_ns):
-        """
-        Return the motor torque [N m] of a torque-mode command at now: held, or 0 once stale.
-
-        Parameters
-        ----------
-        now_ns : int
-            The current time [ns], in the time base of the commands.
-
-        """
-        return self.command_at(now_ns)[3]
-
 
 def first_step(log_time_ns, t0_ns, dt_ns):
     """Return k of the step [t0 + k dt, t0 + (k + 1) dt) that a command logged then acts on."""

@@ -34,11 +34,6 @@ def normal_half_angle(psi_a, lam):
     return math.atan(math.tan(psi_a) * math.cos(lam))
 
 
-def apparent_mu(mu, psi_a, lam):
-    """Apparent friction coefficient mu' = mu / cos(psi_n)."""
-    return mu / math.cos(normal_half_angle(psi_a, lam))
-
-
 def raise_torque(load, r_m, mu_app, lam, collar_mu=0.0, collar_radius=0.0):
     """Torque to drive against an axial load W [N m] (thread plus collar)."""
     t = math.tan(lam)
@@ -71,10 +66,3 @@ def backdrive_efficiency(mu_app, lam):
 def is_self_locking(mu_s_app, lam):
     """Self-locking test: mu'_s >= tan(lambda)."""
     return mu_s_app >= math.tan(lam)
-
-
-def stribeck_mu(v, mu_s, mu_k, v_st, delta_st, mu_v):
-    """Stribeck friction coefficient mu(|v|), clipped at zero (v in m/s)."""
-    a = abs(v)
-    mu = mu_k + (mu_s - mu_k) * math.exp(-(a / v_st) ** delta_st) + mu_v * a
-    return max(mu, 0.0)

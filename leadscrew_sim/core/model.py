@@ -27,9 +27,6 @@ from .output import energy_balance, series_result, step_output, stored_energy
 from .engine.packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
 from .params import ParameterError, ScrewParams
 
-#: Mode names accepted by :meth:`LeadScrewModel.command`, with their codes.
-MODE_CODES = D.MODE_CODES
-
 _NO_COMMANDS = np.zeros((0, L.N_CMD))   # run_series without command rows: torque mode
 
 
@@ -417,7 +414,7 @@ class LeadScrewModel(ReportedValues):
         return self.state[L.S_CT] * self.params.hand_sign + 0.0
 
     def switches(self):
-        """Return the switches (limit_min, limit_max, home) after the last step: 0.0 or 1.0."""
+        """Return the limit and home switch states of the last step (min, max, home): 0.0, 1.0."""
         s = self.state
         return (s[L.S_SWMIN], s[L.S_SWMAX], s[L.S_HOME])
 

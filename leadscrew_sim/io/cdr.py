@@ -223,12 +223,6 @@ def encode_float64(value):
     return _F64(None, (value,))
 
 
-def encode_joint_state(stamp_ns, names, position=(), velocity=(), effort=()):
-    """Return the CDR bytes of a sensor_msgs/JointState (empty frame_id)."""
-    t = joint_state_template(list(names), len(position), len(velocity), len(effort))
-    return t(int(stamp_ns), tuple(position) + tuple(velocity) + tuple(effort))
-
-
 # ---------------------------------------------------------------------------
 # Decoding (fixed layouts; plain CDR, either endianness)
 # ---------------------------------------------------------------------------

@@ -32,7 +32,6 @@ import numpy as np
 
 from ._jit import kernel_jit
 from . import layout as L
-from ..params import DRIVE_FEEDBACKS
 
 MODE_TORQUE = 0         #: cyclic synchronous torque: the command torque
 MODE_VELOCITY = 1       #: cyclic synchronous velocity: w_ref = the command rate
@@ -51,9 +50,6 @@ FAULT_INJECTED = 3          #: latched on request (fault injection)
 #: Fault code -> name.
 FAULT_NAMES = {FAULT_NONE: 'none', FAULT_FOLLOWING_ERROR: 'following_error',
                FAULT_TORQUE_LIMIT: 'torque_limit', FAULT_INJECTED: 'injected'}
-
-#: Values of the drive_feedback parameter: where the position loop's angle comes from.
-FEEDBACKS = DRIVE_FEEDBACKS
 
 #: Design rule of the shipped gains: T_i = TI_FACTOR / w_v, K_p = w_v / KP_DIVISOR.
 TI_FACTOR = 4.0
@@ -285,10 +281,6 @@ def loop_response(p, dt=1e-3, nsub=None):
                 overshoot=max(0.0, ys.max() - 1.0), settling_time=settle)
 
 
-#: Mode names accepted where a mode may be named, with their codes.
-MODE_CODES = {name: code for code, name in MODE_NAMES.items()}
-
-
 def mode_code(mode):
     """
     Return the MODE_* code of a mode code or name; raise ValueError otherwise.
@@ -296,13 +288,14 @@ def mode_code(mode):
     Parameters
     ----------
     mode : int or str
-        A MODE_* code or a name of :data:`MODE_CODES`.
+        A MODE_* code or its name in :data:`MODE_NAMES`.
 
     """
     if isinstance(mode, str):
-        if mode not in MODE_CODES:
-            raise ValueError(f'unknown drive mode {mode!r} (known: {", ".join(MODE_CODES)})')
-        return MODE_CODES[mode]
+        for code, name in MODE_NAMES.items():
+            if name == mode:
+                return code
+        raise ValueError(f'unknown drive mode {mode!r} (known: {", ".join(MODE_NAMES.values())})')
     if isinstance(mode, bool) or mode not in MODE_NAMES:
         raise ValueError(f'unknown drive mode {mode!r} (codes: {sorted(MODE_NAMES)})')
     return int(mode)
