@@ -26,7 +26,7 @@ import zstandard
 from .mcap_writer import MAGIC
 
 #: The largest decompressed chunk accepted [B]: the writers here close a chunk at a few MiB.
-MAX_CHUNK_BYTES = 256 << 20
+MAX_CHUNK_BYTES = 64 << 20
 
 _HEAD = struct.Struct('<BQ')                  # opcode, record length
 _CHUNK_FIXED = struct.Struct('<QQQI')         # start, end, uncompressed size, crc
@@ -184,18 +184,27 @@ def _take_all(records, at, out):
     """Parse the records of a chunk into ``out``; a chunk is taken whole or not at all."""
     taken = Scan()
     taken.schemas, taken.channels = dict(out.schemas), dict(out.channels)
+    messages = taken.messages
+    unpack_head, unpack_message = _HEAD.unpack_from, _MESSAGE_FIXED.unpack_from
+    head, fixed = _HEAD.size, _HEAD.size + _MESSAGE_FIXED.size
     pos, end = 0, len(records)
     while pos < end:
-        if end - pos < _HEAD.size:
+        if end - pos < head:
             raise _Stop(f'a chunk at byte {at} with a truncated record')
-        op, length = _HEAD.unpack_from(records, pos)
-        if length > end - pos - _HEAD.size:
+        op, length = unpack_head(records, pos)
+        nxt = pos + head + length
+        if nxt > end:
             raise _Stop(f'a chunk at byte {at} with a record that overruns it')
-        _take(op, records[pos + _HEAD.size:pos + _HEAD.size + length], at, taken)
-        pos += _HEAD.size + length
+        if op == _OP_MESSAGE and length >= _MESSAGE_FIXED.size:
+            channel, sequence, log_time, publish_time = unpack_message(records, pos + head)
+            messages.append((log_time, channel, records[pos + fixed:nxt], publish_time,
+                             sequence))
+        else:
+            _take(op, records[pos + head:nxt], at, taken)
+        pos = nxt
     out.schemas, out.channels = taken.schemas, taken.channels
     out.metadata.extend(taken.metadata)
-    out.messages.extend(taken.messages)
+    out.messages.extend(messages)
 
 
 def _take(op, body, at, out):
@@ -203,6 +212,7 @@ def _take(op, body, at, out):
     try:
         if op == _OP_MESSAGE:
             channel, sequence, log_time, publish_time = _MESSAGE_FIXED.unpack_from(body, 0)
+            # a message record shorter than its fixed fields raises struct.error: corrupt
             out.messages.append((log_time, channel, bytes(body[_MESSAGE_FIXED.size:]),
                                  publish_time, sequence))
             return
