@@ -191,7 +191,7 @@ def test_a_damaged_file_ends_in_one_line_or_in_the_data_before_the_damage(
 
 
 def test_foreign_and_cut_files_through_the_verbs(originals, tmp_path, capsys):
-    """info: one line, exit != 0 for a file it cannot use; a warning naming recover for a cut one."""
+    """info: one line, exit != 0 for a file it cannot use; a warning naming recover if cut."""
     foreign = tmp_path / 'foreign.mcap'
     with open(foreign, 'wb') as fh:
         w = Writer(fh)
