@@ -50,6 +50,13 @@ def _on_alarm(_sig, _frame):
     raise Hang(f'a read ran longer than {CASE_SECONDS} s')
 
 
+class _Originals(dict):
+    """The undamaged files by compression (a short repr in hypothesis's reports)."""
+
+    def __repr__(self):
+        return '<the undamaged lz4 and zstd files>'
+
+
 @pytest.fixture(scope='module')
 def originals(tmp_path_factory):
     """A short recording in chunks of 32 KiB (lz4, zstd), and what mcap reads of it."""
@@ -62,7 +69,7 @@ def originals(tmp_path_factory):
         header, summary = reader.get_header(), reader.get_summary()
         metadata = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
         source = list(reader.iter_messages(log_time_order=False))
-    out = {}
+    out = _Originals()
     for comp in ('lz4', 'zstd'):
         path = d / f'{comp}.mcap'
         with open(path, 'wb') as fh:
