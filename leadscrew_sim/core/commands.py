@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from .engine.drive import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
+from .drive_modes import MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY
 from .params import ScrewParams
 
 #: How a recording's log times relate to steps (stored in every parameters record).

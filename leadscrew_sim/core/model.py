@@ -8,7 +8,7 @@ for a left-hand one. The parameter vector and the substep come from
 :mod:`.packing`, the values a step or a run reports from :mod:`.output`.
 
 The motor is driven in torque mode (:meth:`LeadScrewModel.advance`, :meth:`~LeadScrewModel.run`
-with torques) or through the servo drive (:mod:`.drive`): :meth:`~LeadScrewModel.command`
+with torques) or through the servo drive (:mod:`.engine.drive`): :meth:`~LeadScrewModel.command`
 sets a held command (torque, velocity, position, quick stop) that
 :meth:`~LeadScrewModel.advance_held` follows, or :meth:`~LeadScrewModel.run` takes one
 command per step.
@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from . import drive_modes as DM
 from .engine import drive as D
 from .engine import kernel as K
 from .engine import layout as L
@@ -202,7 +203,7 @@ class LeadScrewModel(ReportedValues):
         commands : array_like of float, shape (n, 4), optional
             One drive command per step, theta sense: (mode, position [rad],
             velocity [rad/s], effort [N m]) as :meth:`command` takes them (mode
-            a ``drive.MODE_*`` code); NaN in position, velocity or effort means
+            a ``drive_modes.MODE_*`` code); NaN in position, velocity or effort means
             not commanded (an unused field, or a zero feed-forward). The last
             row stays the held command.
 
@@ -278,7 +279,7 @@ class LeadScrewModel(ReportedValues):
         Parameters
         ----------
         mode : int or str
-            ``drive.MODE_TORQUE`` (0, 'torque'), ``MODE_VELOCITY`` (1, 'velocity'),
+            ``drive_modes.MODE_TORQUE`` (0, 'torque'), ``MODE_VELOCITY`` (1, 'velocity'),
             ``MODE_POSITION`` (2, 'position') or ``MODE_QUICKSTOP`` (3,
             'quick_stop': ramp to standstill at ``quick_stop_deceleration``, then
             hold the position reached; repeating it does not restart the ramp).
@@ -298,23 +299,23 @@ class LeadScrewModel(ReportedValues):
             If the mode is unknown or its command is not finite (nothing changes).
 
         """
-        code = D.mode_code(mode)
+        code = DM.mode_code(mode)
         q, w, t = float(position), float(velocity), float(effort)
         w = 0.0 if w != w else w                # NaN feed-forwards: none
         t = 0.0 if t != t else t
         main = (t, w, q, 0.0)[code]
         if not (math.isfinite(main) and math.isfinite(w) and math.isfinite(t)):
-            raise ValueError(f'mode {D.MODE_NAMES[code]} needs a finite '
+            raise ValueError(f'mode {DM.MODE_NAMES[code]} needs a finite '
                              f'{("effort", "velocity", "position", "")[code]} and finite '
                              f'feed-forwards; got position={position!r}, velocity={velocity!r}, '
                              f'effort={effort!r}')
         hs = self.params.hand_sign
         s = self.state
         s[L.S_CMODE] = code     # as drive.prepare_commands converts a row
-        s[L.S_CQ] = hs * q + 0.0 if code == D.MODE_POSITION else 0.0
-        s[L.S_CW] = hs * w + 0.0 if code in (D.MODE_POSITION, D.MODE_VELOCITY) else 0.0
-        s[L.S_CT] = hs * t if code == D.MODE_TORQUE else (
-            hs * t + 0.0 if code != D.MODE_QUICKSTOP else 0.0)
+        s[L.S_CQ] = hs * q + 0.0 if code == DM.MODE_POSITION else 0.0
+        s[L.S_CW] = hs * w + 0.0 if code in (DM.MODE_POSITION, DM.MODE_VELOCITY) else 0.0
+        s[L.S_CT] = hs * t if code == DM.MODE_TORQUE else (
+            hs * t + 0.0 if code != DM.MODE_QUICKSTOP else 0.0)
 
     def advance_held(self, external_force=0.0):
         """
@@ -352,25 +353,25 @@ class LeadScrewModel(ReportedValues):
         Returns
         -------
         int
-            The fault code that was latched (``drive.FAULT_NONE`` if none: then
+            The fault code that was latched (``drive_modes.FAULT_NONE`` if none: then
             nothing changes).
 
         """
         s = self.state
         code = int(s[L.S_DFAULT])
-        if code == D.FAULT_NONE:
+        if code == DM.FAULT_NONE:
             return code
         q_fb = self._feedback_angle()
         s[[L.S_DFAULT, L.S_DINT, L.S_DTLIM, L.S_DQS, L.S_DFERR, L.S_DTOUT]] = 0.0
-        s[L.S_DMODE] = s[L.S_CMODE] = D.MODE_POSITION
+        s[L.S_DMODE] = s[L.S_CMODE] = DM.MODE_POSITION
         s[L.S_DQREF] = s[L.S_CQ] = q_fb
         s[L.S_CW] = s[L.S_CT] = 0.0
         return code
 
     def inject_fault(self):
-        """Latch ``drive.FAULT_INJECTED`` unless a fault is latched (torque off until cleared)."""
-        if int(self.state[L.S_DFAULT]) == D.FAULT_NONE:
-            self.state[L.S_DFAULT] = D.FAULT_INJECTED
+        """Latch ``drive_modes.FAULT_INJECTED`` unless one is latched (torque off till cleared)."""
+        if int(self.state[L.S_DFAULT]) == DM.FAULT_NONE:
+            self.state[L.S_DFAULT] = DM.FAULT_INJECTED
 
     def drive_status(self):
         """
@@ -379,7 +380,7 @@ class LeadScrewModel(ReportedValues):
         Returns
         -------
         dict
-            mode (``drive.MODE_*`` code) and mode_name; fault (``drive.FAULT_*``
+            mode (``drive_modes.MODE_*`` code) and mode_name; fault (``drive_modes.FAULT_*``
             code) and fault_name; limit_min, limit_max, home (switch states,
             bool); following_error: target less feedback angle [rad], theta sense
             (0 outside position mode); effective_drive_rate [Hz] (the substep grid's
@@ -390,19 +391,19 @@ class LeadScrewModel(ReportedValues):
         s, hs = self.state, self.params.hand_sign
         mode, fault = int(s[L.S_DMODE]), int(s[L.S_DFAULT])
         return dict(
-            mode=mode, mode_name=D.MODE_NAMES[mode], fault=fault,
-            fault_name=D.FAULT_NAMES[fault], limit_min=bool(s[L.S_SWMIN] == 1.0),
+            mode=mode, mode_name=DM.MODE_NAMES[mode], fault=fault,
+            fault_name=DM.FAULT_NAMES[fault], limit_min=bool(s[L.S_SWMIN] == 1.0),
             limit_max=bool(s[L.S_SWMAX] == 1.0), home=bool(s[L.S_HOME] == 1.0),
-            following_error=float(hs * s[L.S_DFERR]) + 0.0 if mode == D.MODE_POSITION else 0.0,
+            following_error=float(hs * s[L.S_DFERR]) + 0.0 if mode == DM.MODE_POSITION else 0.0,
             effective_drive_rate=D.effective_rate(self.nsub, self.dt, self.params.drive_rate),
             drive_torque=float(hs * s[L.S_DTOUT]) + 0.0,
-            velocity_reference=float(hs * s[L.S_DWREF]) + 0.0 if mode != D.MODE_TORQUE else 0.0)
+            velocity_reference=float(hs * s[L.S_DWREF]) + 0.0 if mode != DM.MODE_TORQUE else 0.0)
 
     def held_command(self):
         """
         Return the held drive command as a command row (mode, position, velocity, effort).
 
-        The row is what :meth:`run`'s ``commands`` take: the ``drive.MODE_*``
+        The row is what :meth:`run`'s ``commands`` take: the ``drive_modes.MODE_*``
         code, the target angle [rad], the rate [rad/s] and the torque [N m],
         theta sense, as the command rules converted them.
         """
@@ -419,7 +420,7 @@ class LeadScrewModel(ReportedValues):
         return (s[L.S_SWMIN], s[L.S_SWMAX], s[L.S_HOME])
 
     def drive_fault(self):
-        """Return the latched drive fault's ``drive.FAULT_*`` code (``FAULT_NONE``: none)."""
+        """Return the latched drive fault's ``drive_modes.FAULT_*`` code (``FAULT_NONE``: none)."""
         return int(self.state[L.S_DFAULT])
 
     def place_at_rest(self, theta, motor_offset, motor_rate):

@@ -13,7 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from ..core.commands import ACCEPTED, CommandHold, DROPPED, IGNORED, JOINT_COMMAND_MODES
-from ..core.engine.drive import MODE_NAMES, MODE_TORQUE
+from ..core.drive_modes import MODE_NAMES, MODE_TORQUE
 from ..io.cdr import decode_float64, DecodeError
 
 NS = 1_000_000_000

@@ -45,10 +45,9 @@ from std_srvs.srv import SetBool, Trigger
 from ..core import ParameterError, ScrewParams
 from ..core.commands import COMMAND_LOG_TIME, NutMap
 from ..core.delivery import StateDelivery
-from ..core.engine.drive import FAULT_NAMES
+from ..core.drive_modes import FAULT_NAMES
 from ..core.faults import SimulationFault
-from ..core.model import LeadScrewModel
-from ..core.engine.packing import MAX_SUBSTEPS_PER_STEP
+from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder

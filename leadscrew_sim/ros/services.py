@@ -8,7 +8,7 @@ log time), so ``resim`` replays it at the same step.
 import rclpy
 
 from ..core.commands import NutMap
-from ..core.engine.drive import FAULT_NAMES, FAULT_NONE
+from ..core.drive_modes import FAULT_NAMES, FAULT_NONE
 from ..io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD
 
 NS = 1_000_000_000

@@ -11,8 +11,8 @@ import math
 import pytest
 
 from leadscrew_sim.core.commands import (ACCEPTED, CommandHold, IGNORED, NutMap, REJECTED)
-from leadscrew_sim.core.engine.drive import (MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE,
-                                             MODE_VELOCITY)
+from leadscrew_sim.core.drive_modes import (MODE_POSITION, MODE_QUICKSTOP, MODE_TORQUE,
+                                            MODE_VELOCITY)
 
 NAN = float('nan')
 MS = 1_000_000

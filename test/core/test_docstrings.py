@@ -13,7 +13,7 @@ import re
 import pytest
 
 from leadscrew_sim import core
-from leadscrew_sim.core import commands, delivery, fields, presets
+from leadscrew_sim.core import commands, delivery, drive_modes, fields, presets
 from leadscrew_sim.core.engine import drive
 from leadscrew_sim.core.settings import RunSettings
 
@@ -21,7 +21,7 @@ from leadscrew_sim.core.settings import RunSettings
 API = [core.LeadScrewModel, core.ScrewParams, core.load_preset, presets.preset_path,
        presets.read_parameter_file, presets.physics_subset, fields.field,
        commands.CommandHold, RunSettings, delivery.StateDelivery, delivery.lost_samples,
-       drive.command_rows, drive.mode_code]
+       drive.command_rows, drive_modes.mode_code]
 
 
 def documented_parameters(doc):

@@ -26,6 +26,7 @@ import pytest
 from scipy import signal
 
 from leadscrew_sim import LeadScrewModel, load_preset
+from leadscrew_sim.analysis import linear
 from leadscrew_sim.core.engine import drive as D
 from leadscrew_sim.core.engine import layout as L
 
@@ -117,7 +118,7 @@ def run_held(m, n):
 @pytest.mark.parametrize('gains', ['preset', 'fast'])
 def test_small_step_follows_the_discrete_closed_loop(gains):
     p = rigid_axis()
-    j = D.total_inertia(p)
+    j = linear.total_inertia(p)
     if gains == 'fast':   # w_v = 1000 rad/s, K_p = w_v / 2: an overshoot, w_v T_d = 0.25
         p = p.replace(velocity_gain=1000.0 * j, velocity_integral_time=4e-3, position_gain=500.0)
     kv, ti, kp = p.velocity_gain, p.velocity_integral_time, p.position_gain
@@ -139,7 +140,7 @@ def test_small_step_follows_the_discrete_closed_loop(gains):
     assert abs(ts_k - ts_o) <= 0.02 * ts_o, (ts_k, ts_o)
     assert np.abs(y_kernel - y_oracle).max() < 1e-3 * step
     # the linear design figures of the doc table (exact zero-order hold at T_d) agree
-    lr = D.loop_response(p, dt=dt, nsub=m.nsub)
+    lr = linear.loop_response(p, dt=dt, nsub=m.nsub)
     assert lr['overshoot'] == pytest.approx(ov_k, abs=0.02 * ov_k + 1e-4)
     assert lr['settling_time'] == pytest.approx(ts_k, rel=0.03)
     if gains == 'fast':
@@ -253,7 +254,7 @@ def test_velocity_mode_stick_slips_slow_and_slides_steadily_fast():
 
 def test_saturated_step_anti_windup_bounds_the_overshoot():
     p = rigid_axis(max_torque=0.1)
-    j = D.total_inertia(p)
+    j = linear.total_inertia(p)
     kv, ti, kp = p.velocity_gain, p.velocity_integral_time, p.position_gain
     dt = 1e-3
     m = LeadScrewModel(p, dt=dt)
@@ -471,6 +472,7 @@ SCRIPT = r'''
 import hashlib, math, sys
 import numpy as np
 from leadscrew_sim import LeadScrewModel, load_preset
+from leadscrew_sim.analysis import linear
 n = int(sys.argv[1])
 h = hashlib.sha256()
 for name in ('tr8x8', 'stick_slip'):

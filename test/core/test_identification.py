@@ -161,7 +161,7 @@ def test_ringing_recovers_a_damped_oscillation():
 def test_rests_are_the_still_ends_of_long_stretches_of_zero_torque():
     """Counting: two rests of four zero-torque stretches (one too short, one with a moving nut)."""
     from leadscrew_sim.analysis.identify import steps as fit_steps
-    from leadscrew_sim.core.engine.drive import MODE_TORQUE
+    from leadscrew_sim.core.drive_modes import MODE_TORQUE
     dt, n = 1e-3, 5000
     effort = np.ones(n)
     zero = [(1000, 1600), (2000, 2100), (3000, 3600), (4000, 4600)]  # [a, b): the 2nd short
