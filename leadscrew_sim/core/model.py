@@ -300,22 +300,13 @@ class LeadScrewModel(ReportedValues):
 
         """
         code = DM.mode_code(mode)
-        q, w, t = float(position), float(velocity), float(effort)
-        w = 0.0 if w != w else w                # NaN feed-forwards: none
-        t = 0.0 if t != t else t
-        main = (t, w, q, 0.0)[code]
-        if not (math.isfinite(main) and math.isfinite(w) and math.isfinite(t)):
+        row = np.array([[code, float(position), float(velocity), float(effort)]])
+        if D.prepare_commands(row, self.params.hand_sign) >= 0:   # the rule of a command row
             raise ValueError(f'mode {DM.MODE_NAMES[code]} needs a finite '
                              f'{("effort", "velocity", "position", "")[code]} and finite '
                              f'feed-forwards; got position={position!r}, velocity={velocity!r}, '
                              f'effort={effort!r}')
-        hs = self.params.hand_sign
-        s = self.state
-        s[L.S_CMODE] = code     # as drive.prepare_commands converts a row
-        s[L.S_CQ] = hs * q + 0.0 if code == DM.MODE_POSITION else 0.0
-        s[L.S_CW] = hs * w + 0.0 if code in (DM.MODE_POSITION, DM.MODE_VELOCITY) else 0.0
-        s[L.S_CT] = hs * t if code == DM.MODE_TORQUE else (
-            hs * t + 0.0 if code != DM.MODE_QUICKSTOP else 0.0)
+        self.state[[L.S_CMODE, L.S_CQ, L.S_CW, L.S_CT]] = row[0]
 
     def advance_held(self, external_force=0.0):
         """

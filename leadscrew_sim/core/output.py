@@ -1,20 +1,152 @@
 """
 What the model reports: the StepOutput of a step, the arrays of a run, the energy.
 
-:class:`StepOutput` holds one step's values and :func:`step_output` fills it;
+:data:`REPORTED` is the one rule of what a step reports: where each value
+is read in the kernel's record row and how its q sense becomes the theta
+sense; a :class:`Reading` applies it to some of the values. :class:`StepOutput`
+holds one step's values and :func:`step_output` fills it;
 :func:`series_result` turns the records of a compiled run into the per-step
-arrays of :meth:`~.model.LeadScrewModel.run`; :func:`stored_energy` is the
-kinetic, potential and spring energy of a state, for the energy balance that
+arrays of :meth:`~.model.LeadScrewModel.run`; the model's per-tick views read
+a :func:`record_row` as plain floats; :func:`nut_forces` splits the axial
+thread force between the nut bodies. :func:`stored_energy` is the kinetic,
+potential and spring energy of a state, for the energy balance that
 :func:`energy_balance` draws up.
 Angles and torques are reported in the theta sense (physics.md section 3).
 """
 import dataclasses
+import operator
 
 import numpy as np
 
 from .engine import layout as L
 
 CONTACT_NAMES = {1: 'leading', -1: 'trailing', 0: 'backlash'}
+
+#: Sense of a reported value: AS_RECORDED as the kernel holds it; THETA an angle,
+#: rate or torque held in the q sense, reported times the hand sign h (theta sense);
+#: THETA_NO_NEG_ZERO the same, then +0.0 added (a zero is reported as +0.0).
+AS_RECORDED, THETA, THETA_NO_NEG_ZERO = 0, 1, 2
+
+#: Kind of a reported value: FLOAT a number; CODE an integer code; FLAG true where
+#: the recorded value is 1.0.
+FLOAT, CODE, FLAG = 0, 1, 2
+
+_O = L.REC_STATE   # the column of output slot 0 in a record row
+
+#: What a step reports: name -> (column, sense, kind). The column is one of the
+#: kernel's record row (layout: the state's first REC_STATE slots, then the NO
+#: outputs); the order is that of the arrays of a run.
+REPORTED = {
+    'time': (L.S_T, AS_RECORDED, FLOAT),
+    'screw_angle': (L.S_Q, THETA, FLOAT),
+    'screw_velocity': (L.S_DQ, THETA, FLOAT),
+    'motor_angle': (L.S_QM, THETA, FLOAT),
+    'motor_velocity': (L.S_WM, THETA, FLOAT),
+    'nut_position': (L.S_XA, AS_RECORDED, FLOAT),
+    'nut_velocity': (L.S_VA, AS_RECORDED, FLOAT),
+    'motor_torque': (_O + L.O_TE, THETA_NO_NEG_ZERO, FLOAT),
+    'axial_force': (_O + L.O_FAX, AS_RECORDED, FLOAT),
+    'thread_torque': (_O + L.O_TTH, THETA, FLOAT),
+    'friction_force': (_O + L.O_FFA, AS_RECORDED, FLOAT),
+    'normal_leading': (_O + L.O_NLA, AS_RECORDED, FLOAT),
+    'normal_trailing': (_O + L.O_NUA, AS_RECORDED, FLOAT),
+    'sliding_velocity': (_O + L.O_VSA, AS_RECORDED, FLOAT),
+    'contact': (_O + L.O_CONTA, AS_RECORDED, CODE),
+    'stuck': (_O + L.O_STICKA, AS_RECORDED, FLAG),
+    'nut_b_position': (L.S_XB, AS_RECORDED, FLOAT),
+    'nut_b_velocity': (L.S_VB, AS_RECORDED, FLOAT),
+    'sensor_screw_angle': (_O + L.O_JQ, THETA, FLOAT),
+    'sensor_screw_velocity': (_O + L.O_JW, THETA, FLOAT),
+    'sensor_nut_position': (_O + L.O_JX, AS_RECORDED, FLOAT),
+    'sensor_nut_velocity': (_O + L.O_JV, AS_RECORDED, FLOAT),
+    'contact_b': (_O + L.O_CONTB, AS_RECORDED, CODE),
+    'stuck_b': (_O + L.O_STICKB, AS_RECORDED, FLAG),
+    'normal_leading_b': (_O + L.O_NLB, AS_RECORDED, FLOAT),
+    'normal_trailing_b': (_O + L.O_NUB, AS_RECORDED, FLOAT),
+    'friction_force_b': (_O + L.O_FFB, AS_RECORDED, FLOAT),
+    'sliding_velocity_b': (_O + L.O_VSB, AS_RECORDED, FLOAT),
+    'stick_a': (_O + L.O_STICKA, AS_RECORDED, FLOAT),
+    'stick_b': (_O + L.O_STICKB, AS_RECORDED, FLOAT),
+    'input_work': (L.S_WIN, AS_RECORDED, FLOAT),
+    'external_work': (L.S_WEXT, AS_RECORDED, FLOAT),
+    'friction_dissipation': (L.S_EFRIC, AS_RECORDED, FLOAT),
+    'damping_dissipation': (L.S_EDAMP, AS_RECORDED, FLOAT),
+    'substeps': (_O + L.O_NSUB, AS_RECORDED, CODE),
+    'mode': (_O + L.O_DMODE, AS_RECORDED, CODE),
+    'fault': (_O + L.O_DFAULT, AS_RECORDED, CODE),
+    'limit_min': (_O + L.O_SWMIN, AS_RECORDED, FLAG),
+    'limit_max': (_O + L.O_SWMAX, AS_RECORDED, FLAG),
+    'home': (_O + L.O_HOME, AS_RECORDED, FLAG),
+    'following_error': (_O + L.O_DFERR, THETA_NO_NEG_ZERO, FLOAT),
+    'drive_torque': (_O + L.O_DTCMD, THETA_NO_NEG_ZERO, FLOAT),
+    'velocity_reference': (_O + L.O_DWREF, THETA_NO_NEG_ZERO, FLOAT),
+}
+
+#: The drive's values: in the arrays of a run with command rows only.
+DRIVE_VALUES = ('mode', 'fault', 'limit_min', 'limit_max', 'home', 'following_error',
+                'drive_torque', 'velocity_reference')
+
+#: The arrays of every run, before the nut forces (:func:`nut_forces`) and the drive's.
+RUN_VALUES = tuple(n for n in REPORTED if n != 'substeps' and n not in DRIVE_VALUES)
+
+
+class Reading:
+    """
+    How to read some of the values of :data:`REPORTED` from a record row, in their sense.
+
+    Called with a record row (a sequence indexed by its columns: a list of
+    floats, a numpy row, or the transposed records of a run for arrays) and
+    the hand sign, it returns the values in the order of ``names``.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Names of :data:`REPORTED`, at least two.
+
+    """
+
+    def __init__(self, names):
+        """Keep the columns, the values to turn into the theta sense and the kinds."""
+        self.names = tuple(names)
+        spec = [REPORTED[n] for n in self.names]
+        self.kinds = tuple(kind for _col, _sense, kind in spec)
+        self._get = operator.itemgetter(*(col for col, _sense, _kind in spec))
+        self._theta = tuple(i for i, (_c, sense, _k) in enumerate(spec) if sense != AS_RECORDED)
+        self._no_neg_zero = tuple(i for i, (_c, sense, _k) in enumerate(spec)
+                                  if sense == THETA_NO_NEG_ZERO)
+
+    def __call__(self, row, hs):
+        """Return the values of ``row`` (hand sign ``hs``) as a list, numbers whatever kind."""
+        v = list(self._get(row))
+        if hs != 1:
+            for i in self._theta:
+                v[i] = hs * v[i]
+        for i in self._no_neg_zero:
+            v[i] = v[i] + 0.0
+        return v
+
+
+def record_row(s, o):
+    """Return the record row of a state and its outputs as a list of floats (q sense)."""
+    return s[:L.REC_STATE].tolist() + o.tolist()
+
+
+def nut_forces(normal_leading, normal_trailing, friction_force, axial_force, cl, sl):
+    """
+    Return the axial thread force on nut A and the rest, on half-nut B [N].
+
+    Parameters
+    ----------
+    normal_leading, normal_trailing, friction_force : float or numpy.ndarray
+        Flank normal forces and thread friction force of nut A [N].
+    axial_force : float or numpy.ndarray
+        Axial thread force on both nut bodies [N].
+    cl, sl : float
+        cos and sin of the lead angle.
+
+    """
+    f_a = (normal_leading - normal_trailing) * cl + friction_force * sl
+    return f_a, axial_force - f_a
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +178,11 @@ class StepOutput:
         return CONTACT_NAMES[self.contact]
 
 
+_STEP = Reading(f.name for f in dataclasses.fields(StepOutput))
+_RUN = Reading(RUN_VALUES)
+_DRIVE = Reading(DRIVE_VALUES)
+
+
 def step_output(s, o, hs):
     """
     Return the StepOutput of a state and the outputs of its last step.
@@ -56,19 +193,19 @@ def step_output(s, o, hs):
         The state vector (q sense).
     o : numpy.ndarray
         The output vector of the last step (q sense).
-    hs : int
-        The hand sign of the thread (+1 right, -1 left).
+    hs : float
+        The hand sign of the thread (+1 left, -1 right).
 
     """
-    return StepOutput(
-        time=s[L.S_T], motor_angle=hs * s[L.S_QM], motor_velocity=hs * s[L.S_WM],
-        screw_angle=hs * s[L.S_Q], screw_velocity=hs * s[L.S_DQ],
-        nut_position=s[L.S_XA], nut_velocity=s[L.S_VA], nut_b_position=s[L.S_XB],
-        motor_torque=hs * o[L.O_TE] + 0.0, normal_leading=o[L.O_NLA],
-        normal_trailing=o[L.O_NUA], friction_force=o[L.O_FFA],
-        sliding_velocity=o[L.O_VSA], contact=int(o[L.O_CONTA]),
-        stuck=bool(o[L.O_STICKA] == 1.0), axial_force=o[L.O_FAX],
-        thread_torque=hs * o[L.O_TTH], substeps=int(o[L.O_NSUB]))
+    values = _STEP(np.concatenate((s[:L.REC_STATE], o)), hs)
+    return StepOutput(*(int(v) if kind == CODE else bool(v == 1.0) if kind == FLAG else v
+                        for v, kind in zip(values, _STEP.kinds)))
+
+
+def _arrays(reading, r, hs):
+    """Return {name: array} of a reading of the records ``r`` of a run."""
+    return {name: v.astype(int) if kind == CODE else v == 1.0 if kind == FLAG else v
+            for name, v, kind in zip(reading.names, reading(r.T, hs), reading.kinds)}
 
 
 def series_result(r, hs, drive, cl=1.0, sl=0.0):
@@ -79,52 +216,20 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0):
     ----------
     r : numpy.ndarray, shape (n, REC_STATE + NO)
         The records of the steps done: state, then outputs (q sense).
-    hs : int
-        The hand sign of the thread (+1 right, -1 left).
+    hs : float
+        The hand sign of the thread (+1 left, -1 right).
     drive : bool
         Add the drive's outputs (a run with command rows).
     cl, sl : float
         cos and sin of the lead angle (the per-nut axial forces).
 
     """
-
-    def hand(col):   # a q-sense column in the physical sense (a view for right hand)
-        return r[:, col] if hs == 1 else -r[:, col]
-    o = L.REC_STATE
-    res = dict(
-        time=r[:, L.S_T], screw_angle=hand(L.S_Q), screw_velocity=hand(L.S_DQ),
-        motor_angle=hand(L.S_QM), motor_velocity=hand(L.S_WM),
-        nut_position=r[:, L.S_XA], nut_velocity=r[:, L.S_VA],
-        motor_torque=hand(o + L.O_TE) + 0.0, axial_force=r[:, o + L.O_FAX],
-        thread_torque=hand(o + L.O_TTH), friction_force=r[:, o + L.O_FFA],
-        normal_leading=r[:, o + L.O_NLA], normal_trailing=r[:, o + L.O_NUA],
-        sliding_velocity=r[:, o + L.O_VSA], contact=r[:, o + L.O_CONTA].astype(int),
-        stuck=r[:, o + L.O_STICKA] == 1.0,
-        nut_b_position=r[:, L.S_XB], nut_b_velocity=r[:, L.S_VB],
-        sensor_screw_angle=hand(o + L.O_JQ), sensor_screw_velocity=hand(o + L.O_JW),
-        sensor_nut_position=r[:, o + L.O_JX], sensor_nut_velocity=r[:, o + L.O_JV])
-    res.update(
-        contact_b=r[:, o + L.O_CONTB].astype(int), stuck_b=r[:, o + L.O_STICKB] == 1.0,
-        normal_leading_b=r[:, o + L.O_NLB], normal_trailing_b=r[:, o + L.O_NUB],
-        friction_force_b=r[:, o + L.O_FFB], sliding_velocity_b=r[:, o + L.O_VSB],
-        stick_a=r[:, o + L.O_STICKA], stick_b=r[:, o + L.O_STICKB],
-        input_work=r[:, L.S_WIN], external_work=r[:, L.S_WEXT],
-        friction_dissipation=r[:, L.S_EFRIC], damping_dissipation=r[:, L.S_EDAMP])
-    # the axial thread force on nut A, and the rest on half-nut B, as truth_values() forms them
-    f_a = ((r[:, o + L.O_NLA] - r[:, o + L.O_NUA]) * cl + r[:, o + L.O_FFA] * sl)
-    res.update(nut_force=f_a, nut_b_force=r[:, o + L.O_FAX] - f_a)
-    if drive:   # the drive's outputs O_DMODE .. O_DWREF, in one copy
-        d = np.ascontiguousarray(r[:, o + L.O_DMODE:o + L.O_DWREF + 1].T)
-        d0 = L.O_DMODE
-        ang = d[L.O_DFERR - d0:]        # following error, drive torque, velocity reference
-        ang *= hs                       # q sense -> theta sense
-        ang += 0.0                      # no -0.0
-        res.update(
-            mode=d[L.O_DMODE - d0].astype(int), fault=d[L.O_DFAULT - d0].astype(int),
-            limit_min=d[L.O_SWMIN - d0] == 1.0, limit_max=d[L.O_SWMAX - d0] == 1.0,
-            home=d[L.O_HOME - d0] == 1.0, following_error=ang[0],
-            drive_torque=ang[L.O_DTCMD - L.O_DFERR],
-            velocity_reference=ang[L.O_DWREF - L.O_DFERR])
+    res = _arrays(_RUN, r, hs)
+    res['nut_force'], res['nut_b_force'] = nut_forces(
+        res['normal_leading'], res['normal_trailing'], res['friction_force'],
+        res['axial_force'], cl, sl)
+    if drive:
+        res.update(_arrays(_DRIVE, r, hs))
     return res
 
 

@@ -4,9 +4,23 @@ The per-tick values a model reports, as plain floats: a mix-in of :class:`.model
 The node's fast path: what the sensors report (:meth:`ReportedValues.joint_values`),
 the truth of every body (:meth:`~ReportedValues.truth_values`) and the thread contact
 and energy terms (:meth:`~ReportedValues.analysis_values`), read from the model's
-state and outputs without building a StepOutput. Angles and torques in the theta sense.
+state and outputs without building a StepOutput. Angles and torques in the theta sense,
+by the rule of :data:`.output.REPORTED`.
 """
 from .engine import layout as L
+from .output import nut_forces, Reading, record_row
+
+_JOINT = Reading(('sensor_screw_angle', 'sensor_nut_position', 'sensor_screw_velocity',
+                  'sensor_nut_velocity', 'motor_torque', 'axial_force'))
+_TRUTH = Reading(('motor_angle', 'screw_angle', 'nut_position', 'nut_b_position',
+                  'motor_velocity', 'screw_velocity', 'nut_velocity', 'nut_b_velocity',
+                  'motor_torque', 'thread_torque', 'normal_leading', 'normal_trailing',
+                  'friction_force', 'axial_force'))
+_ANALYSIS = Reading(('contact', 'stick_a', 'normal_leading', 'normal_trailing', 'friction_force',
+                     'sliding_velocity', 'contact_b', 'stick_b', 'normal_leading_b',
+                     'normal_trailing_b', 'friction_force_b', 'sliding_velocity_b'))
+_ENERGY = ('input_work', 'external_work', 'kinetic', 'potential', 'spring',
+           'friction_dissipation', 'damping_dissipation')
 
 
 class ReportedValues:
@@ -23,9 +37,7 @@ class ReportedValues:
         the axial thread force. With ideal sensors these are the true values of
         :meth:`output`.
         """
-        o, hs = self.out.tolist(), self.params.hand_sign
-        return (hs * o[L.O_JQ], o[L.O_JX], hs * o[L.O_JW], o[L.O_JV], hs * o[L.O_TE] + 0.0,
-                o[L.O_FAX])
+        return tuple(_JOINT(record_row(self.state, self.out), self.params.hand_sign))
 
     def truth_values(self):
         """
@@ -37,12 +49,9 @@ class ReportedValues:
         torque on the screw [N m], axial thread force on nut A [N], on half-nut
         B [N], on both [N]); without a split nut B follows A and carries no force.
         """
-        s, o, hs = self.state.tolist(), self.out.tolist(), self.params.hand_sign
-        cl, sl = float(self._P[L.P_CL]), float(self._P[L.P_SL])
-        f_a = (o[L.O_NLA] - o[L.O_NUA]) * cl + o[L.O_FFA] * sl
-        return (hs * s[L.S_QM], hs * s[L.S_Q], s[L.S_XA], s[L.S_XB], hs * s[L.S_WM],
-                hs * s[L.S_DQ], s[L.S_VA], s[L.S_VB], hs * o[L.O_TE] + 0.0, hs * o[L.O_TTH],
-                f_a, o[L.O_FAX] - f_a, o[L.O_FAX])
+        v = _TRUTH(record_row(self.state, self.out), self.params.hand_sign)
+        f_a, f_b = nut_forces(*v[10:], float(self._P[L.P_CL]), float(self._P[L.P_SL]))
+        return (*v[:10], f_a, f_b, v[13])
 
     def analysis_values(self):
         """
@@ -55,10 +64,6 @@ class ReportedValues:
         contact 1 leading flank, -1 trailing, 0 in the backlash; stick 1 stuck,
         0 sliding, -1 no load.
         """
-        o = self.out.tolist()
         e = self.energy()
-        return (o[L.O_CONTA], o[L.O_STICKA], o[L.O_NLA], o[L.O_NUA], o[L.O_FFA], o[L.O_VSA],
-                o[L.O_CONTB], o[L.O_STICKB], o[L.O_NLB], o[L.O_NUB], o[L.O_FFB], o[L.O_VSB],
-                *(float(e[k]) for k in ('input_work', 'external_work', 'kinetic', 'potential',
-                                        'spring', 'friction_dissipation',
-                                        'damping_dissipation')))
+        v = _ANALYSIS(record_row(self.state, self.out), self.params.hand_sign)
+        return (*v, *(float(e[k]) for k in _ENERGY))

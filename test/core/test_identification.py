@@ -185,7 +185,7 @@ def test_anchoring_moves_screw_and_nut_by_one_lead_and_keeps_the_gap():
     m = LeadScrewModel(p, 1e-3)
     m.run(np.concatenate([np.linspace(0, 1.2, 200), np.zeros(300)]))
     s0 = m.state.copy()
-    hs, ratio = p.hand_sign, p.lead / (2 * math.pi)
+    hs, ratio = p.hand_sign, p.lead_ratio
     rest = fit_steps.Rest(0, 499, centre=-40.0, amp_a=0.05, amp_b=0.0, s=0.0, w=447.0)
     fit_steps.anchor(m, rest, 0.5)
     s1 = m.state
