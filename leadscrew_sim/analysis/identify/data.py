@@ -196,7 +196,7 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
 
     Parameters
     ----------
-    coords : list of identification.Coordinate
+    coords : list of Coordinate
         The fitted parameters.
     z : numpy.ndarray
         Their coordinates at the solution.

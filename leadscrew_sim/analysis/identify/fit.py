@@ -4,12 +4,12 @@ Parameter identification: bounded nonlinear least squares on a re-simulation (no
 The caller supplies ``residuals(values) -> array (n_signals, n_time)``: the
 re-simulation of the recorded commands with the physical values ``{name:
 value}``, less the measured signals, divided by each signal's noise level
-(:class:`.fit_data.Measurements`). :func:`fit` minimises the sum of squares with
+(:class:`.data.Measurements`). :func:`fit` minimises the sum of squares with
 ``scipy.optimize.least_squares`` (method ``'trf'``, bounded) in scaled
 coordinates (:class:`Coordinate`: z = v / s, or z = ln(v / s) for a parameter
 that spans decades), then estimates the covariance from the final Jacobian,
 95 % intervals (t distribution), the correlations, and a verdict per
-parameter (:mod:`.fit_data`).
+parameter (:mod:`.data`).
 
 The covariance is the sandwich B M B with B = (J^T J)^-1 and M the
 long-run covariance of the per-step scores g_t = sum_s J_st r_st (Bartlett
@@ -27,7 +27,8 @@ import numpy as np
 
 from ...core.params import ScrewParams
 from . import data as V
-from .search import local_fit, profiled, restart_fit, scanned, spread, SCAN_ABOVE
+from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
+                     SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                    sensor_sigma, SIGNALS)
@@ -180,7 +181,7 @@ class FitResult:
         return self.values[self.names.index(name)]
 
     def verdict(self, name):
-        """Return the :class:`~.fit_data.Verdict` of parameter ``name``."""
+        """Return the :class:`~.data.Verdict` of parameter ``name``."""
         return self.verdicts[self.names.index(name)]
 
 
@@ -283,7 +284,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         Also scan each log-scaled parameter's profile after the whole run's
         stage (:func:`profiled`).
     jac_steps : tuple of float
-        Relative steps in z of the intervals' Jacobian (:func:`.fit_data.interval_jacobian`).
+        Relative steps in z of the intervals' Jacobian (:func:`.data.interval_jacobian`).
 
     """
     t_wall = time.perf_counter()
@@ -296,55 +297,81 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         fun = _Counted(residuals, active, dict(fixed, **{n: start[n] for n in held}))
         z0 = np.array([c.to_z(c.initial) for c in active])
         if rms0 is None:
-            r0 = fun(z0)
-            rms0 = _rms(r0, fun.shape)
+            rms0 = _rms(fun(z0), fun.shape)      # fun(z0) sets fun.shape
         if not active:
             r, jac, z = fun(z0), np.zeros((fun(z0).size, 0)), z0
             break
-        lo = np.array([c.to_z(c.lower) if not (c.log and c.lower <= 0) else -np.inf
-                       for c in active])
-        hi = np.array([c.to_z(c.upper) for c in active])
-        z = np.clip(z0, lo, hi)
-        stages = (horizons or []) + [None] if _round == 0 else [None]
-        for stage, h in enumerate(stages):
-            fun.horizon = h
-            starts = [z] + (spread(z, active, lo, hi) if _round == 0 and h is not None else [])
-            best = None
-            step = diff_step * (COARSE if h is not None else 1.0)
-            target = fun if h is None else _Anchored(fun, z)
-            for zs in starts:
-                res = local_fit(target, zs, lo, hi, step, ftol, xtol, max_nfev, len(active))
-                if best is None or res.cost < best.cost:
-                    best = res
-            res, z_stage = best, z
-            if h is None:
-                res, _z = restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev,
-                                      len(active))
-            if _round == 0 and scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
-                origins = [z_stage, res.x] + ([z0] if rescan and stage > 0 else [])
-                res = scanned(target, res, origins, lo, hi, step, ftol, xtol,
-                              max_nfev, active, restart=h is None)
-            if h is None and profile and _round == 0:
-                res = profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, active)
-            z = res.x
-        fun.horizon = None
-        r = fun(z)
-        nfev += fun.nfev
-        message = res.message
-        jac = V.interval_jacobian(fun, z, r, jac_steps, lo, hi)
-        nfev_after = fun.nfev
-        cov, lag = sandwich(jac, r, fun.shape)
-        verdicts = V.judge(active, z, jac, cov, r, lo, hi, LEVEL, dof=_dof(r, len(active)),
-                           hints=hints)
-        nfev += fun.nfev - nfev_after
-        bad = [c for c, v in zip(active, verdicts) if not v.identified]
-        if not bad or _round == rounds - 1:
+        opts = _search_options(active, diff_step, ftol, xtol, max_nfev)
+        first = _round == 0
+        res, z = _stages(fun, active, z0, opts, horizons if first else None, scan and first,
+                         rescan, profile and first)
+        r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints)
+        nfev, message = nfev + counted, res.message
+        if all(v.identified for v in verdicts) or _round == rounds - 1:
             break
         held.update({c.name: v for c, v in zip(active, verdicts) if not v.identified})
         # the others start from where this fit left them
         active = [dataclasses.replace(c, initial=c.to_value(zi))
                   for c, zi, v in zip(active, z, verdicts) if v.identified]
     return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints)
+
+
+def _search_options(coords, diff_step, ftol, xtol, max_nfev):
+    """Return the SearchOptions of a round: the bounds of ``coords`` in z and the options."""
+    lo = np.array([c.to_z(c.lower) if not (c.log and c.lower <= 0) else -np.inf
+                   for c in coords])
+    hi = np.array([c.to_z(c.upper) for c in coords])
+    return SearchOptions(lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+
+
+def _stages(fun, coords, z0, opts, horizons, scan, rescan, profile):
+    """
+    Fit the ``horizons`` stages (None: none) and the whole run; return (result, its z).
+
+    ``opts`` are those of the whole run's stage; the horizon stages fit the
+    residuals pulled toward their start (:class:`_Anchored`) with a
+    :data:`COARSE` step, the first of them also from the :func:`spread`
+    points. ``scan``, ``rescan`` and ``profile`` as :func:`fit`'s.
+    """
+    z = np.clip(z0, opts.lo, opts.hi)
+    for stage, h in enumerate((horizons or []) + [None]):
+        fun.horizon = h
+        starts = [z] + (spread(z, coords, opts.lo, opts.hi) if h is not None else [])
+        step = opts.replace(diff_step=opts.diff_step * (COARSE if h is not None else 1.0))
+        target = fun if h is None else _Anchored(fun, z)
+        best = None
+        for zs in starts:
+            res = local_fit(target, zs, step)
+            if best is None or res.cost < best.cost:
+                best = res
+        res = best
+        if h is None:
+            res, _z = restart_fit(fun, res, opts)
+        if scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
+            origins = [z, res.x] + ([z0] if rescan and stage > 0 else [])
+            res = scanned(target, res, origins, coords, step, restart=h is None)
+        if h is None and profile:
+            res = profiled(fun, res, coords, opts)
+        z = res.x
+    return res, z
+
+
+def _judged(fun, coords, z, opts, jac_steps, hints):
+    """
+    Return the whole run's residuals at ``z``, the intervals' Jacobian, the verdicts and nfev.
+
+    The count is of the evaluations outside the Jacobian's.
+    """
+    fun.horizon = None
+    r = fun(z)
+    counted = fun.nfev
+    jac = V.interval_jacobian(fun, z, r, jac_steps, opts.lo, opts.hi)
+    nfev_after = fun.nfev
+    cov, _lag = sandwich(jac, r, fun.shape)
+    verdicts = V.judge(coords, z, jac, cov, r, opts.lo, opts.hi, LEVEL,
+                       dof=_dof(r, len(coords)), hints=hints)
+    counted += fun.nfev - nfev_after
+    return r, jac, verdicts, counted
 
 
 def _dof(r, p):

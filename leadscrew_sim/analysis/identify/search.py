@@ -1,5 +1,5 @@
 """
-The searches of :func:`.identification.fit` beyond one local least-squares fit.
+The searches of :func:`.fit.fit` beyond one local least-squares fit.
 
 A re-simulation is piecewise smooth in its parameters, and the cost of a
 long run from a distant start has local minima and ridges: the optimiser is
@@ -8,14 +8,49 @@ a residual above twice the noise is scanned coordinate by coordinate
 (:func:`scanned`), the first stage also starts from each log-scaled
 parameter moved by a factor (:func:`spread`), and a log-scaled parameter
 far weaker than the others can be followed along its profile
-(:func:`profiled`).
+(:func:`profiled`). Every local fit of a search takes its bounds and
+``least_squares`` options from one :class:`SearchOptions`.
 """
+import dataclasses
 import math
 
 import numpy as np
 
 
-def local_fit(fun, z, lo, hi, diff_step, ftol, xtol, max_nfev, p):
+@dataclasses.dataclass(frozen=True, eq=False)
+class SearchOptions:
+    """
+    The bounds and ``least_squares`` options of the local fits of a bounded search.
+
+    Parameters
+    ----------
+    lo, hi : numpy.ndarray
+        Bounds of the coordinates z (see :class:`.data.Coordinate`).
+    diff_step : float
+        Relative step of the finite-difference Jacobian in z.
+    ftol, xtol : float
+        Tolerances of ``least_squares``.
+    max_nfev : int or None
+        Most evaluations of a local fit (None: 50 per parameter).
+    p : int
+        The number of fitted parameters (the default ``max_nfev`` is 50 p).
+
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    diff_step: float
+    ftol: float
+    xtol: float
+    max_nfev: int
+    p: int
+
+    def replace(self, **changes):
+        """Return a copy with ``changes`` (field: value)."""
+        return dataclasses.replace(self, **changes)
+
+
+def local_fit(fun, z, opts):
     """
     Return scipy's bounded local least-squares fit (``trf``, z unscaled) of ``fun`` from ``z``.
 
@@ -25,34 +60,28 @@ def local_fit(fun, z, lo, hi, diff_step, ftol, xtol, max_nfev, p):
         z -> the flattened weighted residuals.
     z : numpy.ndarray
         The starting point.
-    lo, hi : numpy.ndarray
-        Bounds of z.
-    diff_step, ftol, xtol : float
-        Options of ``least_squares`` (see :func:`.identification.fit`).
-    max_nfev : int or None
-        Most evaluations (None: 50 per parameter).
-    p : int
-        The number of parameters.
+    opts : SearchOptions
+        The bounds and options of the fit.
 
     """
     from scipy.optimize import least_squares
-    return least_squares(fun, z, bounds=(lo, hi), method='trf', x_scale=1.0,
-                         diff_step=diff_step, ftol=ftol, xtol=xtol, gtol=1e-10,
-                         max_nfev=max_nfev or 50 * p)
+    return least_squares(fun, z, bounds=(opts.lo, opts.hi), method='trf', x_scale=1.0,
+                         diff_step=opts.diff_step, ftol=opts.ftol, xtol=opts.xtol, gtol=1e-10,
+                         max_nfev=opts.max_nfev or 50 * opts.p)
 
 
 #: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
 RESTARTS, RESTART_GAIN = 3, 1e-4
 
 
-def restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
+def restart_fit(fun, res, opts):
     """
     Restart the optimiser where it stopped while that still lowers the cost.
 
     On a piecewise smooth cost the trust region collapses at a jump and the
     optimiser stops on ``xtol`` short of the minimum; a restart begins with a
     fresh trust region and a Jacobian of another step (alternately 3 and 1/3
-    times ``diff_step``), which steps over the jump. Returns (result, its z).
+    times ``opts.diff_step``), which steps over the jump. Returns (result, its z).
 
     Parameters
     ----------
@@ -60,19 +89,13 @@ def restart_fit(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, p):
         z -> the flattened weighted residuals.
     res : scipy.optimize.OptimizeResult
         The fit to improve on.
-    lo, hi : numpy.ndarray
-        Bounds of z.
-    diff_step, ftol, xtol : float
-        Options of ``least_squares`` (see :func:`.identification.fit`).
-    max_nfev : int or None
-        Most evaluations of a local fit (None: 50 per parameter).
-    p : int
-        The number of parameters.
+    opts : SearchOptions
+        The bounds and options of the local fits.
 
     """
     for k in range(RESTARTS):
-        step = diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
-        new = local_fit(fun, res.x, lo, hi, step, ftol, xtol, max_nfev, p)
+        step = opts.diff_step * (3.0 if k % 2 == 0 else 1.0 / 3.0)
+        new = local_fit(fun, res.x, opts.replace(diff_step=step))
         if not new.cost < res.cost * (1.0 - RESTART_GAIN):
             if new.cost < res.cost:
                 res = new
@@ -90,7 +113,7 @@ SCAN_ABOVE = 2.0
 SCAN_WIDTHS, SCAN_POINTS, SCAN_SWEEPS = ((0.5, 1.4), (0.05, 0.14), (0.005, 0.014)), 11, 2
 
 
-def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, restart):
+def scanned(fun, res, starts, coords, opts, restart):
     """
     Return the result of a coordinate scan and a local fit from it, if it lowers the cost.
 
@@ -110,20 +133,17 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
         z -> the flattened weighted residuals.
     res : scipy.optimize.OptimizeResult
         The fit to improve on.
-    lo, hi : numpy.ndarray
-        Bounds of z.
-    diff_step, ftol, xtol : float
-        Options of ``least_squares`` (see :func:`.identification.fit`).
-    max_nfev : int or None
-        Most evaluations of a local fit (None: 50 per parameter).
     starts : list of numpy.ndarray
         The points the sweeps start from.
     coords : list of Coordinate
         The fitted parameters.
+    opts : SearchOptions
+        The bounds and options of the local fits.
     restart : bool
         Restart the last local fit as :func:`restart_fit` does.
 
     """
+    lo, hi = opts.lo, opts.hi
     best_z, best_c = np.array(res.x), float(np.sum(res.fun ** 2))
     for zs in starts:
         z = np.array(zs, dtype=float)
@@ -142,9 +162,9 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
             best_z, best_c = z, c
     if best_c >= 2.0 * res.cost:
         return res
-    new = local_fit(fun, best_z, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+    new = local_fit(fun, best_z, opts)
     if restart:
-        new, _z = restart_fit(fun, new, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+        new, _z = restart_fit(fun, new, opts)
     return new if new.cost < res.cost else res
 
 
@@ -153,7 +173,7 @@ def scanned(fun, res, starts, lo, hi, diff_step, ftol, xtol, max_nfev, coords, r
 PROFILE_GRIDS, PROFILE_TOL = ((math.log(4.0), 13), (0.12, 5)), 1e-5
 
 
-def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
+def profiled(fun, res, coords, opts):
     """
     Return the local fit from the best point of each log parameter's profile, if it is better.
 
@@ -172,21 +192,19 @@ def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
         z -> the flattened weighted residuals.
     res : scipy.optimize.OptimizeResult
         The fit to improve on.
-    lo, hi : numpy.ndarray
-        Bounds of z.
-    diff_step, ftol, xtol : float
-        Options of ``least_squares`` (see :func:`.identification.fit`).
-    max_nfev : int or None
-        Most evaluations of a local fit (None: 50 per parameter).
     coords : list of Coordinate
         The fitted parameters.
+    opts : SearchOptions
+        The bounds and options of the local fits.
 
     """
+    lo, hi = opts.lo, opts.hi
     best = res
     for i, c in enumerate(coords):
         if not c.log or len(coords) < 2:
             continue
         others = [j for j in range(len(coords)) if j != i]
+        along = opts.replace(lo=lo[others], hi=hi[others], ftol=PROFILE_TOL, xtol=PROFILE_TOL)
         centre = best.x[i]
         for width, points in PROFILE_GRIDS:
             found = None
@@ -198,15 +216,14 @@ def profiled(fun, res, lo, hi, diff_step, ftol, xtol, max_nfev, coords):
                     z[i], z[others] = zi, zo
                     return fun(z)
 
-                r = local_fit(reduced, best.x[others], lo[others], hi[others], diff_step,
-                              PROFILE_TOL, PROFILE_TOL, max_nfev, len(coords))
+                r = local_fit(reduced, best.x[others], along)
                 if found is None or r.cost < found[0]:
                     found = (r.cost, zi, r.x)
             centre = found[1]
         if found[0] < best.cost:
             z = np.empty(len(coords))
             z[i], z[others] = found[1], found[2]
-            new = local_fit(fun, z, lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
+            new = local_fit(fun, z, opts)
             if new.cost < best.cost:
                 best = new
     return best

@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from ...core.engine.drive import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
+from ...core.drive_modes import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
 
 #: Least duration [s] of a stretch of zero torque that may hold a rest, and the window
 #: [s] at its end in which the axis must rest.
@@ -77,7 +77,7 @@ def drop_slow(meas, commands, recorded, dt):
 
     Parameters
     ----------
-    meas : fit_data.Measurements
+    meas : data.Measurements
         The measured signals; the steps left out leave its mask.
     commands : numpy.ndarray, shape (n, 4)
         The drive command rows of the steps.
@@ -421,7 +421,7 @@ def anchoring_of(meas, commands, dt):
 
     Parameters
     ----------
-    meas : fit_data.Measurements
+    meas : data.Measurements
         The measured signals (an encoder angle, optionally a scale position).
     commands : numpy.ndarray, shape (n, 4)
         The drive command rows of the steps.
