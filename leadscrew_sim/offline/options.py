@@ -1,8 +1,9 @@
 """
 What the offline runs share: the user-facing error, ``--set``, parameters, progress, memory.
 
-The verbs of :mod:`leadscrew_sim.cli` parse arguments and call this run
-library; a :class:`RunError` it raises is printed by the verb as one line.
+The verbs of the command line parse arguments and call this run library; a
+:class:`RunError` it raises is printed by the verb as one line, and a failed
+integration becomes one in :func:`simulation_faults`.
 """
 import contextlib
 import ctypes
@@ -13,6 +14,7 @@ import sys
 import time
 
 from ..core import yamlio
+from ..core.faults import SimulationFault
 from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, physics_subset, read_parameter_file
@@ -24,6 +26,27 @@ DEFAULT_PRESET = 'tr12x3'
 
 class RunError(Exception):
     """A user-facing error of an offline run: printed as one line, exit status 1."""
+
+
+@contextlib.contextmanager
+def simulation_faults(where=''):
+    """
+    Raise a failed integration inside the block as the run's one-line :class:`RunError`.
+
+    The model raises :class:`~leadscrew_sim.core.faults.SimulationFault` when
+    its state becomes non-finite; the error reads ``simulation fault<where>:
+    <the fault>``.
+
+    Parameters
+    ----------
+    where : str
+        Said after ``simulation fault`` (for example the steps that ran).
+
+    """
+    try:
+        yield
+    except SimulationFault as exc:
+        raise RunError(f'simulation fault{where}: {exc}') from None
 
 
 def parse_scalar(text):

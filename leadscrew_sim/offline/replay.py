@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .options import NS, RunError
+from .options import NS, RunError, simulation_faults
 from .replay_events import RecordedEvents
 from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
 from ..core.delivery import StateDelivery
@@ -236,11 +236,8 @@ class Resim:
                 rows[held] = model.held_command()
             for part in _parts(seg, block_ticks):
                 a, b = part.k0 - seg.k0, part.k1 - seg.k0
-                try:
+                with simulation_faults(f' in steps {part.k0}..{part.k1 - 1}'):
                     cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b])
-                except FloatingPointError as exc:
-                    raise RunError(f'simulation fault in steps {part.k0}..{part.k1 - 1}: '
-                                   f'{exc}') from None
                 yield part, cols
                 if progress is not None:
                     progress.update(part.k1)
