@@ -37,7 +37,7 @@ import time
 import numpy as np
 
 from leadscrew_sim import cli, LeadScrewModel
-from leadscrew_sim.cli.identify import fit_recording
+from leadscrew_sim.offline.identify import fit_recording
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / 'test'))

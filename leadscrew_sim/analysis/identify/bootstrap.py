@@ -21,7 +21,7 @@ from ...core.params import ScrewParams
 BOOTSTRAP, AWAY = 4, 2.0
 
 
-def bootstrap(problem, res, names, start, coords, args, bounds):
+def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     """
     Widen each interval to the spread of refits of synthetic recordings (a parametric bootstrap).
 
@@ -40,8 +40,9 @@ def bootstrap(problem, res, names, start, coords, args, bounds):
     Parameters
     ----------
     problem : Problem
-        The recording's fit problem (:class:`.identify.Problem`); its
-        measured data are swapped for each synthetic recording and restored.
+        The recording's fit problem of ``identify`` (its ``measurements``,
+        ``replay``, ``residuals``, ``use_data``); its measured data are swapped
+        for each synthetic recording and restored.
     res : FitResult
         The fit of the recording.
     names : list of str
@@ -50,11 +51,34 @@ def bootstrap(problem, res, names, start, coords, args, bounds):
         The starting and fixed values.
     coords : list of Coordinate
         The fitted parameters' coordinates of the first fit.
-    args : argparse.Namespace
-        The command's options (``max_nfev``).
+    max_nfev : int or None
+        Most re-simulations per refit (None: 50 per parameter).
     bounds : dict
         name -> (lower, upper) of each fitted parameter, the first fit's.
 
+    """
+    errors, nfev = _refit_errors(problem, res, names, start, coords, max_nfev, bounds)
+    s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
+    tq = t_975(BOOTSTRAP)
+    verdicts, lower, upper = [], [], []
+    for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
+        problem.bootstrap[c.name] = float(s_b[i])
+        if vd.identified and tq * s_b[i] > 0.5 * (vd.upper - vd.lower):
+            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]))
+        verdicts.append(vd)
+        lower.append(vd.lower)
+        upper.append(vd.upper)
+    values = [v if vd.identified else v0
+              for v, v0, vd in zip(res.values, res.initial, verdicts)]
+    return dataclasses.replace(res, values=values, lower=lower, upper=upper,
+                               verdicts=verdicts, nfev=nfev)
+
+
+def _refit_errors(problem, res, names, start, coords, max_nfev, bounds):
+    """
+    Return the errors of the refits of the synthetic recordings and the fit's nfev with theirs.
+
+    The arguments are :func:`bootstrap`'s.
     """
     fitted = dict(zip(res.names, res.values))
     sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
@@ -78,37 +102,25 @@ def bootstrap(problem, res, names, start, coords, args, bounds):
                 away[c.name] = min(c.upper, max(c.lower, v + sign * step))
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), bounds),
-                max_nfev=args.max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
+                max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
             errors.append(np.array(syn.values) - np.array(res.values))
             nfev += syn.nfev
     finally:
         meas.data, meas.mask, problem.anchoring = recorded
-    s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
-    tq = t_975(BOOTSTRAP)
-    verdicts, lower, upper = [], [], []
-    for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
-        problem.bootstrap[c.name] = float(s_b[i])
-        if not vd.identified or not tq * s_b[i] > 0.5 * (vd.upper - vd.lower):
-            verdicts.append(vd)
-            lower.append(vd.lower)
-            upper.append(vd.upper)
-            continue
-        hw = tq * float(s_b[i])
-        lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
-        rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
-        ok = rel <= REL_MAX
-        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
-               'refits of synthetic recordings)' if ok else
-               f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
-               f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
-        verdicts.append(dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi,
-                                            rel=rel, std=float(s_b[i])))
-        lower.append(lo)
-        upper.append(hi)
-    values = [v if vd.identified else v0
-              for v, v0, vd in zip(res.values, res.initial, verdicts)]
-    return dataclasses.replace(res, values=values, lower=lower, upper=upper,
-                               verdicts=verdicts, nfev=nfev)
+    return errors, nfev
+
+
+def _widened(vd, v, c, hw, s_b):
+    """Return the verdict of value ``v`` of coordinate ``c`` with the half-width ``hw``."""
+    lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
+    rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
+    ok = rel <= REL_MAX
+    why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
+           'refits of synthetic recordings)' if ok else
+           f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
+           f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
+    return dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi, rel=rel,
+                               std=s_b)
 
 
 def t_975(dof):

@@ -1,0 +1,225 @@
+"""
+The fit of ``identify``: parameters whose re-simulation of a recording's commands gives its states.
+
+The recording becomes a :class:`.identify_problem.Problem`: its commands
+re-simulated with ideal sensors, the residuals the simulated less the
+recorded sensor signals, each divided by its noise level;
+:mod:`leadscrew_sim.analysis.identify.fit` fits them. A fit that does not
+explain the recording is repeated with restarts at the recording's rests
+(a torque-mode recording), else once more with its later scans also from
+the start; an explained fit's intervals are widened by the parametric
+bootstrap when the sensors are noisy. Starting and fixed values come from
+``--preset`` / ``--params`` / ``--set`` (by default the preset the
+recording names), never from the recording's parameters: those would be
+the answer.
+"""
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from .identify_inputs import fit_names, start_params
+from .identify_problem import Problem
+from .options import RunError
+from ..analysis.identify.bootstrap import bootstrap
+from ..analysis.identify import fit as ident
+from ..core.params import ScrewParams
+from ..io.mcap_reader import Recording
+
+
+def hints(cols):
+    """Return name -> why this run cannot show the parameter, from a re-simulation's columns."""
+    out = {}
+    contact = np.asarray(cols['contact'])
+    if len(np.unique(contact[contact != 0])) < 2:
+        out['backlash'] = 'the thread contact never changed flank (no load reversal)'
+    stick = np.asarray(cols['stick_a'])
+    breaks = np.count_nonzero((stick[:-1] == 1) & (stick[1:] == 0))
+    if breaks == 0:
+        out['mu_s'] = 'the thread never broke away from standstill'
+    slide = np.abs(np.asarray(cols['sliding_velocity']))
+    if slide.max(initial=0.0) == 0.0:
+        out['mu_k'] = out['stribeck_velocity'] = out['mu_viscous'] = 'the thread never slid'
+    return out
+
+
+def horizons(problem):
+    """Return the growing fit horizons [steps]: n / 16 (at least 200 steps) .. n / 2."""
+    n, hs = problem.n, []
+    h = n // 2
+    while h >= max(200, n // 16):
+        hs.insert(0, h)
+        h //= 2
+    return hs or None
+
+
+def fit_recording(args):
+    """
+    Fit the parameters of ``args`` to its recording; return the pieces of the outputs.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of ``leadscrew_sim identify`` (the recording ``file``,
+        ``fit``, the starting values, a foreign recording's mapping,
+        ``rate`` [Hz], ``max_nfev``, ``restarts``).
+
+    Returns
+    -------
+    dict
+        res (FitResult), params (the fitted ScrewParams), problem, label,
+        initial and final (the re-simulated columns), wall [s], single (the
+        rejected FitResult of one run from the start when restarts at the
+        rests replaced it, else None), second (None without a second attempt,
+        else whether it explained the recording).
+
+    """
+    names = fit_names(args.fit)
+    if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
+        raise RunError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
+    t_wall = time.perf_counter()
+    rec = Recording(args.file)
+    rec.require_ros2()
+    start, label = start_params(args, rec)
+    problem = Problem(args, rec, start)
+    try:
+        coords = ident.coordinates(names, start)
+    except ValueError as exc:
+        raise RunError(f'--fit: {exc}') from None
+    plan = Plan(problem, names, start, coords, args.max_nfev)
+    weights = dict(problem.measurements.sigma)
+    res, initial, final, misfit = _fit(plan)
+    single = None           # the fit in one run, when it missed and restarts replaced it
+    if misfit and args.restarts == 'auto' and problem.restart():
+        single = _reject(res, misfit)
+        res, initial, final, misfit = _fit(plan)
+        res.nfev += single.nfev
+    second = None           # whether a second attempt explained the recording (None: none)
+    if misfit and problem.anchoring is None:
+        res, initial, final, misfit = _rescanned(plan, weights, (res, initial, final, misfit))
+        second = not misfit
+    problem.bootstrap = {}
+    if misfit:
+        res = _reject(res, misfit)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
+            ident.sensor_sigma(ScrewParams()):
+        res = bootstrap(problem, res, names, start, coords, args.max_nfev, plan.bounds)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    params = ScrewParams.from_dict({n: v for n, v, vd in zip(res.names, res.values,
+                                                             res.verdicts) if vd.identified},
+                                   base=start)
+    return dict(res=res, params=params, problem=problem, label=label, initial=initial,
+                final=final, wall=time.perf_counter() - t_wall, single=single, second=second)
+
+
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    """
+    What every fit of a recording shares: the problem, the fitted names, the start, the bounds.
+
+    ``coords`` are the fitted parameters' coordinates at ``start`` (their
+    bounds hold for every refit); ``max_nfev`` the most re-simulations per
+    fit stage (None: 50 per parameter).
+    """
+
+    problem: Problem
+    names: list
+    start: ScrewParams
+    coords: list
+    max_nfev: int
+
+    @property
+    def bounds(self):
+        """Return name -> (lower, upper) of the coordinates (a refit keeps the first's)."""
+        return {c.name: (c.lower, c.upper) for c in self.coords}
+
+
+#: Most refits after the steps compared moved with the fitted values (restarts at rests).
+PREDICT_ROUNDS = 3
+
+
+def _fit(plan, rescan=False):
+    """
+    Fit the plan's problem from its start; return (FitResult, initial and final columns, misfit).
+
+    With restarts at rests the steps compared are those the rests determine at
+    the fitted values, and the fit is repeated while they change; a signal
+    the model explains only to an RMS above its noise is then weighted by
+    that RMS and the fit repeated. ``misfit``: why the fit does not explain
+    the recording ('' when it does).
+    """
+    problem = plan.problem
+    initial = problem.replay({})
+    why = hints(problem.compared(initial))
+    res = ident.fit(problem.residuals, plan.coords, horizons=horizons(problem), hints=why,
+                    max_nfev=plan.max_nfev, profile=problem.anchoring is not None,
+                    rescan=rescan, jac_steps=problem.jac_steps)
+    fitted = dict(zip(res.names, res.values))
+    for _again in range(PREDICT_ROUNDS):    # the steps the rests determine at the fit
+        if problem.anchoring is None or not problem.predict(fitted):
+            break
+        res = _refit(plan, res, why)
+        fitted = dict(zip(res.names, res.values))
+    final = problem.replay(fitted)
+    problem.raised = problem.measurements.reweight(final)
+    if problem.raised:              # refit with those signals' weights at their rms
+        res = _refit(plan, res, why)
+        final = problem.replay(dict(zip(res.names, res.values)))
+    return res, initial, final, _misfit(problem, final)
+
+
+def _rescanned(plan, weights, missed):
+    """
+    Fit once more with the later stages' scans also from the start; return the better fit.
+
+    ``missed`` is the fit (as :func:`_fit` returns it) that does not explain the
+    recording; the new one starts with the signals' weights ``weights`` of the
+    first and replaces it only if it explains the recording. Either way the
+    re-simulations of both are counted.
+    """
+    problem = plan.problem
+    kept = (dict(problem.measurements.sigma), list(problem.raised))
+    problem.measurements.sigma, problem.raised = dict(weights), []
+    again = _fit(plan, rescan=True)
+    nfev = missed[0].nfev + again[0].nfev
+    if again[3]:
+        problem.measurements.sigma, problem.raised = kept
+        again = missed
+    again[0].nfev = nfev
+    return again
+
+
+def _refit(plan, res, why):
+    """Return the fit of the plan's problem again from the values of ``res`` (its nfev added)."""
+    again = ScrewParams.from_dict(dict(zip(res.names, res.values)), base=plan.start)
+    res2 = ident.fit(plan.problem.residuals, ident.coordinates(plan.names, again, plan.bounds),
+                     hints=why, max_nfev=plan.max_nfev, jac_steps=plan.problem.jac_steps)
+    res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
+    return res2
+
+
+#: Largest residual RMS / noise level of a signal at an accepted fit: a fit of the right
+#: minimum leaves about 1 (the tests' accepted fits stay below 2).
+MISFIT = 2.5
+
+
+def _misfit(problem, final):
+    """Return why the fit does not explain the recording ('' when it does)."""
+    meas = problem.measurements
+    bad = [f'{name} {rms / problem.noise[name][0]:.3g}' for name, rms in
+           zip(meas.names, meas.rms(final)) if rms > MISFIT * problem.noise[name][0]]
+    if not bad:
+        return ''
+    return (f'the fit does not explain the recording (RMS / sigma: {", ".join(bad)}; above '
+            f'{MISFIT:g} the re-simulation stopped in a wrong minimum or lacks something)')
+
+
+def _reject(res, why):
+    """Return ``res`` with every parameter not identifiable for ``why``, at its start."""
+    verdicts = [dataclasses.replace(vd, identified=False, reason=f'not identifiable: {why}')
+                for vd in res.verdicts]
+    nan = [float('nan')] * len(res.names)
+    return dataclasses.replace(res, values=list(res.initial), verdicts=verdicts, lower=nan,
+                               upper=list(nan))

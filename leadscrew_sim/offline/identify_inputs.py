@@ -1,0 +1,196 @@
+"""
+The inputs of ``identify``: starting values, fitted names, measured signals, foreign recordings.
+
+A recording of another source (:class:`ForeignReplay`) is a JointState state
+topic and a command topic, mapped by the options; its steps and commands
+go through the node's command rules as a leadscrew_sim recording's do.
+"""
+import numpy as np
+
+from .options import load_params, NS, parse_sets, RunError
+from ..analysis.identify import fit as ident
+from ..core.commands import CommandHold, NutMap
+from ..core.params import ScrewParams
+from ..core.presets import load_preset, preset_names
+from ..io import cdr as C
+from ..io.run_file import PARAMS_RECORD
+
+
+#: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
+SIGMA_FLOOR = {'screw_angle': 1e-9, 'nut_position': 1e-12, 'motor_torque': 1e-9}
+
+
+def fit_names(text):
+    """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
+    if text is None:
+        return list(ident.DEFAULT_FIT)
+    names = [n.strip() for n in text.split(',') if n.strip()]
+    for n in names:
+        if n not in ident.FITTABLE:
+            raise RunError(f"--fit: '{n}' is not a fittable parameter (fittable: "
+                           f"{', '.join(ident.FITTABLE)})")
+    if not names or len(set(names)) != len(names):
+        raise RunError(f'--fit {text!r}: give distinct parameter names, comma separated')
+    return names
+
+
+def start_params(args, rec):
+    """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
+    phys, run_ov = parse_sets(args.set)
+    if run_ov:
+        raise RunError('identify --set accepts physics parameters only')
+    if args.preset or args.params:
+        params, label, _extra = load_params(args, phys)
+        return params, label
+    meta = rec.record(PARAMS_RECORD) or {}
+    label = meta.get('preset') if meta.get('preset') in preset_names() else 'tr12x3'
+    params = load_preset(label)
+    return (ScrewParams.from_dict(phys, base=params) if phys else params), label
+
+
+def check_geometry(start, recorded):
+    """Refuse a starting set whose read-only geometry differs from the recording's."""
+    info = ScrewParams.field_info()
+    for name, (_t, _d, md) in info.items():
+        if md.get('read_only') and name not in ('linear_scale', 'initial_position') and \
+                getattr(start, name) != getattr(recorded, name):
+            raise RunError(f'the starting set has {name}={getattr(start, name)!r}, the '
+                           f'recording {getattr(recorded, name)!r}: choose the preset or '
+                           'parameter file of this axis (--preset, --params)')
+
+
+def measurements(path, data, recorded, torque_only, foreign):
+    """Return (Measurements, {signal: (noise level, how it is known)}) of a recording."""
+    known = {} if foreign else ident.sensor_sigma(recorded)
+    signals, sigma, noise = {}, {}, {}
+    wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
+        ([] if torque_only else ['motor_torque'])
+    for name in wanted:
+        y = data[name]
+        if not np.isfinite(y).any():
+            continue
+        s = known.get(name)
+        how = 'sensor parameters'
+        if s is None:
+            s, how = ident.noise_estimate(y), 'estimated from the data'
+        s = max(s, SIGMA_FLOOR[name])
+        signals[name], sigma[name], noise[name] = y, s, (s, how)
+    if not signals:
+        raise RunError(f'{path}: no measured joint states to fit against')
+    return ident.Measurements(signals, sigma), noise
+
+
+class ForeignReplay:
+    """
+    A recording of another source: JointState states and drive commands on mapped topics.
+
+    The steps run at ``--rate`` from the first command's log time; every
+    command goes through :class:`CommandHold` (the node's rules), the states
+    are matched to steps by their stamps.
+    """
+
+    def __init__(self, args, rec, params):
+        """Find the topics and joints and collect the commands and states."""
+        self.path = rec.path
+        self.dt_ns = int(round(NS / (args.rate or 1000.0)))
+        self.params = params
+        state = args.state_topic or rec.role_topic('joint_states')
+        self.state_topic = _topic(rec, state, '--state-topic')
+        if rec.topic_types.get(self.state_topic) != 'sensor_msgs/msg/JointState':
+            raise RunError(f'--state-topic {self.state_topic}: type '
+                           f'{rec.topic_types.get(self.state_topic)!r}, expected '
+                           'sensor_msgs/msg/JointState')
+        if args.command_topic is None:
+            raise RunError('--command-topic: a foreign recording needs the command topic '
+                           '(and --command-kind for a Float64 topic)')
+        self.command_topic = _topic(rec, args.command_topic, '--command-topic')
+        ctype = rec.topic_types.get(self.command_topic)
+        if ctype == 'std_msgs/msg/Float64' and args.command_kind is None:
+            raise RunError('--command-kind: give torque, velocity or position for the Float64 '
+                           f'topic {self.command_topic}')
+        if ctype not in ('std_msgs/msg/Float64', 'sensor_msgs/msg/JointState'):
+            raise RunError(f'--command-topic {self.command_topic}: type {ctype!r}, expected '
+                           'std_msgs/msg/Float64 or sensor_msgs/msg/JointState')
+        self.kind = args.command_kind
+        self.joints = (args.screw_joint or 'screw_joint', args.nut_joint or 'nut_joint')
+        self.commands = [(t, d) for t, topic, d in rec.messages if topic == self.command_topic]
+        self.states = [(t, d) for t, topic, d in rec.messages if topic == self.state_topic]
+        if not self.commands:
+            raise RunError(f'{rec.path}: no messages on the command topic {self.command_topic}')
+        self.t0 = self.commands[0][0]
+        last = max(t for t, _d in self.states) if self.states else self.t0
+        self.n_steps = max(0, (last - self.t0) // self.dt_ns)
+        self._inputs = None
+
+    def inputs(self):
+        """Return (segments, command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
+        if self._inputs is not None:
+            return self._inputs
+        from ..core.model import LeadScrewModel
+        model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
+        hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
+        rows = np.empty((self.n_steps, 4))
+        cmds, i = self.commands, 0
+        screw, nut = self.joints
+        for k in range(self.n_steps):
+            t_k = self.t0 + k * self.dt_ns
+            while i < len(cmds) and cmds[i][0] <= t_k:
+                data = cmds[i][1]
+                i += 1
+                if self.kind is not None and len(data) == 12:
+                    getattr(hold, f'{self.kind}_command')(C.decode_float64(data), t_k)
+                else:
+                    _s, names, pos, vel, eff = C.decode_joint_state(data)
+                    names = [{screw: 'screw_joint', nut: 'nut_joint'}.get(n, n) for n in names]
+                    hold.joint_commands(names, pos, vel, eff, t_k)
+            rows[k] = hold.command_at(t_k)
+        self._inputs = ([], rows, np.zeros(self.n_steps))
+        return self._inputs
+
+    def replay(self, overrides, n=None):
+        """Return the columns of ``model.run`` of the first ``n`` steps (all: None)."""
+        from ..core.model import LeadScrewModel
+        params = ScrewParams.from_dict(overrides, base=self.params)
+        _seg, rows, forces = self.inputs()
+        return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces[:n],
+                                                              commands=rows[:n])
+
+    def measured(self):
+        """Return the recorded screw angle, nut position and motor torque per step (NaN: none)."""
+        return _decode_states(self.states, self.t0, self.dt_ns, self.n_steps, *self.joints)
+
+
+def _topic(rec, name, option):
+    """Return the recorded topic ``name`` (relative names match any namespace)."""
+    for topic in rec.topic_types:
+        if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
+            return topic
+    raise RunError(f"{option} {name}: no such topic in {rec.path} (topics: "
+                   f"{', '.join(sorted(rec.topic_types))})")
+
+
+def _decode_states(states, t0, dt_ns, n, screw, nut):
+    """Return {signal: array (n,)} of JointState messages [(log time, bytes)] by their stamps."""
+    out = {s: np.full(n, np.nan) for s in ('screw_angle', 'nut_position', 'motor_torque')}
+    for _t, data in states:
+        stamp, names, pos, _vel, eff = C.decode_joint_state(data)
+        k = (stamp - t0) // dt_ns - 1
+        if not 0 <= k < n or (stamp - t0) % dt_ns:
+            continue
+        for j, name in enumerate(names):
+            if name == screw:
+                if j < len(pos):
+                    out['screw_angle'][k] = pos[j]
+                if j < len(eff):
+                    out['motor_torque'][k] = eff[j]
+            elif name == nut and j < len(pos):
+                out['nut_position'][k] = pos[j]
+    return out
+
+
+def measured_of_resim(sim):
+    """Return the recorded sensor signals of a leadscrew_sim recording (``Resim``) per step."""
+    topic = sim.topics.get('joint_states')
+    states = [(t, d) for t, tp, d in sim.rec.messages if tp == topic] if topic else []
+    return _decode_states(states, sim.t0, sim.dt_ns, sim.n_steps,
+                          sim.prefix + 'screw_joint', sim.prefix + 'nut_joint')

@@ -1,0 +1,203 @@
+"""
+The problem ``identify`` fits: a recording's replay, its measured signals and their weights.
+
+The recorded commands go through the model (:class:`.replay.Resim`, the
+node's command rules; a foreign recording through
+:class:`.identify_inputs.ForeignReplay`) with ideal sensors; the measured
+signals are the encoder angle, the scale position, and the motor torque
+unless every command is a torque command, each weighted by its noise level.
+"""
+import math
+
+import numpy as np
+
+from .identify_inputs import (check_geometry, ForeignReplay, measured_of_resim,
+                              measurements)
+from .options import NS, RunError
+from .replay import Resim
+from ..analysis.identify import fit as ident
+from ..analysis.identify import steps as fit_steps
+from ..core.drive_modes import MODE_TORQUE
+from ..core.params import ParameterError, ScrewParams
+from ..io.run_file import PARAMS_RECORD
+
+#: The recording's measurement setup: taken from its parameters record, never fitted.
+SETUP_FIELDS = tuple(n for n in ScrewParams.names()
+                     if n.startswith(('encoder_', 'scale_', 'fault_'))) + (
+    'linear_scale', 'velocity_filter_time', 'sensor_seed', 'state_delay', 'command_delay')
+
+
+class Problem:
+    """
+    A recording set up for fitting: its replay, its measured signals and their weights.
+
+    ``replay(values)`` returns the columns of ``model.run`` of every step with
+    the starting set, ``values`` and ideal sensors; ``measurements`` the
+    recorded sensor signals on the same step grid.
+    """
+
+    def __init__(self, args, rec, start):
+        """Read the recording (a leadscrew_sim one, or foreign with the mapping options)."""
+        foreign = bool(args.state_topic or args.command_topic) or \
+            rec.record(PARAMS_RECORD) is None
+        self.start = start
+        if foreign:
+            src = ForeignReplay(args, rec, start)
+            recorded = start
+        else:
+            src = Resim(rec)
+            recorded = src.params
+            check_geometry(start, recorded)
+        self.source, self.foreign, self.recorded = src, foreign, recorded
+        self.dt = src.dt_ns / NS
+        _segments, commands, _forces = src.inputs()
+        modes = commands[:, 0][np.isfinite(commands[:, 0])]
+        if not len(modes) or src.n_steps == 0:
+            raise RunError(f'{rec.path}: no drive commands (torque_command, velocity_command, '
+                           'position_command or joint_commands) to re-simulate')
+        self.torque_only = bool(np.all(modes == MODE_TORQUE))
+        self.mode_names = sorted({('torque', 'velocity', 'position', 'quick_stop')[int(m)]
+                                  for m in np.unique(modes)})
+        setup = {n: getattr(recorded, n) for n in SETUP_FIELDS}
+        base = {n: getattr(start, n) for n in ScrewParams.names() if n not in SETUP_FIELDS}
+        self.overrides = {**base, **setup, **ident.noiseless_sensors(
+            ScrewParams.from_dict(dict(encoder_bias=ident.NULL_BIAS), base=recorded)
+            if foreign else recorded)}
+        data = src.measured() if foreign else measured_of_resim(src)
+        self.measurements, self.noise = measurements(rec.path, data, recorded,
+                                                     self.torque_only, foreign)
+        self.n = src.n_steps
+        self.slow = 0
+        if not (self.torque_only or foreign) and recorded.encoder_counts > 0:
+            self.slow = fit_steps.drop_slow(self.measurements, commands, recorded, self.dt)
+        self.commands, self.forces = commands, _forces
+        self.anchoring = None
+        self.restartable = self.torque_only and not foreign and len(_segments) == 1 and \
+            not _segments[0].events
+        self.sigma0 = dict(self.measurements.sigma)
+        if args.restarts == 'on':
+            self.restart()
+        self.evaluations = 0
+        self.raised = []
+        self.loop_noise = {}
+        if not (self.torque_only or foreign) and ident.sensor_sigma(recorded) != \
+                ident.sensor_sigma(ScrewParams()):
+            self._add_loop_noise(recorded)
+
+    def _add_loop_noise(self, recorded):
+        """
+        Add to each signal's noise level the spread the sensor noise causes through the drive.
+
+        In velocity and position mode the drive closes its loops over the noisy,
+        quantised sensors, so the recorded motion itself carries their noise
+        (the motor follows the noise within the loop's bandwidth); the
+        noiseless re-simulation cannot have it. Its size is measured by one
+        re-simulation at the starting values with the recorded sensor model
+        (another seed, so not the recorded noise) against the noiseless one:
+        the RMS difference of each signal, offset removed, is added in
+        quadrature to the sensor's own level.
+        """
+        sensors = {n: getattr(recorded, n) for n in ident.IDEAL_SENSORS}
+        sensors['sensor_seed'] = (recorded.sensor_seed + 1) % 2 ** 31
+        noisy = self.replay(sensors)
+        clean = self.replay({})
+        meas = self.measurements
+        for name in meas.names:
+            col = {'screw_angle': 'motor_angle'}.get(name, name)
+            d = np.asarray(noisy[col][:self.n]) - np.asarray(clean[col][:self.n])
+            if name in ident.OFFSET_SIGNALS:
+                d = d - d.mean()
+            loop = float(np.sqrt(np.mean(d ** 2)))
+            self.loop_noise[name] = loop
+            sigma, how = self.noise[name]
+            total = math.hypot(sigma, loop) if how == 'sensor parameters' else max(sigma, loop)
+            meas.sigma[name] = total
+            self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
+                                f'sensor noise ({loop:.3g})')
+
+    @property
+    def jac_steps(self):
+        """Return the relative steps of the intervals' Jacobian (wider with restarts)."""
+        return ident.JAC_STEPS if self.anchoring is None else fit_steps.JAC_STEPS
+
+    def restart(self):
+        """
+        Restart the re-simulation at the recording's rests, if it has any; return whether.
+
+        The signals' weights return to their noise levels (a fit in one run may
+        have raised them).
+        """
+        meas = self.measurements
+        raised = meas.sigma
+        meas.sigma = dict(self.sigma0)
+        if not self.restartable or fit_steps.anchoring_of(meas, self.commands, self.dt) is None:
+            meas.sigma = raised
+            return False
+        self.raised = []
+        self.use_data(meas.data, {})
+        return True
+
+    def use_data(self, data, values):
+        """
+        Compare with measured ``data`` (n_signals, n) from now on.
+
+        With restarts the rests are found in ``data`` and the steps compared are
+        those the rests determine at the physical ``values``
+        (:mod:`leadscrew_sim.analysis.identify.steps`).
+        """
+        meas = self.measurements
+        if not hasattr(self, 'base_mask'):
+            self.base_mask = meas.mask.copy()
+        meas.data, meas.mask = data, self.base_mask.copy()
+        self.anchoring = fit_steps.anchoring_of(meas, self.commands, self.dt)
+        if self.anchoring is not None:
+            self.predict(values)
+
+    def predict(self, values):
+        """Compare only the steps the rests determine at ``values``; return whether they moved."""
+        meas = self.measurements
+        overrides = dict(self.overrides, **values)
+        keep = self.anchoring.predictable(lambda: self.source.model(overrides), self.commands,
+                                          self.forces, [(meas.columns[s], meas.sigma[s])
+                                                        for s in meas.names])
+        mask = self.base_mask & keep[None, :meas.n]
+        changed = not np.array_equal(mask, meas.mask)
+        meas.mask = mask
+        return changed
+
+    def replay(self, values, n=None, plain=False):
+        """
+        Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``.
+
+        Restarted at the rests unless ``plain`` (one run from the start, as recorded).
+        """
+        self.evaluations += 1
+        overrides = dict(self.overrides, **values)
+        try:
+            if self.anchoring is not None and not plain:
+                return self.anchoring.run(self.source.model(overrides), self.commands,
+                                          self.forces, n)
+            if n is None or self.foreign:
+                return self.source.replay(overrides, n) if self.foreign else \
+                    self.source.replay(overrides)
+            src = self.source          # the steps up to n only: the horizon of a fit stage
+            parts, done = [], 0
+            for part, cols in src.blocks(src.model(overrides), overrides=overrides,
+                                         block_ticks=n):
+                parts.append(cols)
+                done = part.k1
+                if done >= n:
+                    break
+            return {k: np.concatenate([c[k] for c in parts]) for k in parts[0]} if parts \
+                else {}
+        except ParameterError as exc:
+            raise RunError(f're-simulation with {values}: {exc}') from None
+
+    def compared(self, cols):
+        """Return the columns ``cols`` of a re-simulation at the steps some signal is compared."""
+        used = self.measurements.mask.any(axis=0)
+        return {k: np.asarray(v)[:len(used)][used[:len(v)]] for k, v in cols.items()}
+
+    def residuals(self, values, n=None):
+        """Return the weighted residuals of the first ``n`` steps (all: None)."""
+        return self.measurements.residuals(self.replay(values, n), n)
