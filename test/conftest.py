@@ -27,6 +27,24 @@ os.environ.pop('ROS_LOCALHOST_ONLY', None)
 os.environ.setdefault('ROS_LOG_DIR', str(HERE.parent / '.ros_log'))
 os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
 
+
+def _has_avx2_fma():
+    try:
+        flags = Path('/proc/cpuinfo').read_text().split()
+    except OSError:
+        return False
+    return 'avx2' in flags and 'fma' in flags
+
+
+# numpy's and scipy's bundled OpenBLAS pick their kernels by the CPU when they load
+# (SkylakeX on AVX-512 hosts, Haswell on AVX2 and AMD Zen hosts). The kernels differ in
+# the last bits of an SVD, and least_squares' steps in identify's fits follow them: the
+# fitted values of the identification tests move by more than their tolerances. The
+# tests pin the Haswell kernels (any AVX2 + FMA host runs them), before numpy loads;
+# CLI subprocesses inherit the setting.
+if _has_avx2_fma():
+    os.environ.setdefault('OPENBLAS_CORETYPE', 'Haswell')
+
 from helpers import NodeProcess, Ros  # noqa: E402  (after the environment is set)
 
 
