@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-__all__ = ['Breakaway', 'StribeckPoint', 'ReversalError', 'axial_load', 'breakaway_torques',
+__all__ = ['Breakaway', 'StribeckPoint', 'ReversalFigures', 'axial_load', 'breakaway_torques',
            'derived_figures', 'efficiencies', 'format_figures', 'hold_series',
            'reversal_error', 'stribeck_points']
 
@@ -64,7 +64,7 @@ class StribeckPoint:
 
 
 @dataclasses.dataclass(frozen=True)
-class ReversalError:
+class ReversalFigures:
     """ISO 230-2 bidirectional figures of a positioning run [m]."""
 
     targets: tuple          # target positions
@@ -248,7 +248,7 @@ def efficiencies(points, load):
 
 def reversal_error(t, command, nut_position, window=0.2, min_dwell=0.1):
     """
-    Return the ISO 230-2 ReversalError of a bidirectional positioning run (None: no pairs).
+    Return the ISO 230-2 ReversalFigures of a bidirectional positioning run (None: no pairs).
 
     A dwell is a run of one position command lasting at least ``min_dwell``;
     its approach direction is the sign of its target minus the command just
@@ -289,8 +289,8 @@ def reversal_error(t, command, nut_position, window=0.2, min_dwell=0.1):
     up = tuple(float(np.mean(r[1][1])) for r in rows)
     down = tuple(float(np.mean(r[1][-1])) for r in rows)
     b = tuple(u - d for u, d in zip(up, down))
-    return ReversalError(targets, up, down, b, float(np.mean(b)), float(np.max(np.abs(b))),
-                         tuple((len(r[1][1]), len(r[1][-1])) for r in rows))
+    return ReversalFigures(targets, up, down, b, float(np.mean(b)), float(np.max(np.abs(b))),
+                           tuple((len(r[1][1]), len(r[1][-1])) for r in rows))
 
 
 def derived_figures(kind, run, load=None, threshold=1e-6, settle=0.3):

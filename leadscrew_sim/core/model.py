@@ -59,7 +59,7 @@ class LeadScrewModel(ReportedValues):
         self.dt = float(dt)
         self.substep = auto_substep(self.params)
         self.nsub = self.substeps_for(self.dt)
-        self.state = np.zeros(L.NS)
+        self.state = np.zeros(L.N_STATE)
         self.out = np.zeros(L.NO)
         self._wk, self._iwk = K.workspace()
         self.fault = None

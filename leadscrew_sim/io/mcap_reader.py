@@ -17,7 +17,7 @@ import zstandard
 from .mcap_scan import MAX_CHUNK_BYTES, scan
 from .mcap_writer import MAGIC
 from .run_file import PARAMS_RECORD
-from .topics import TOPICS
+from .topics import TOPIC_SPECS
 
 __all__ = ['Recording', 'RecordingError', 'TopicArrays']
 
@@ -226,7 +226,7 @@ class Recording:
         ``joint_states`` is not ``sim/joint_states``: a topic that ends with a
         longer name of the topic table ending in ``rel`` belongs to that one.
         """
-        longer = [k for k in TOPICS if k != rel and k.endswith('/' + rel)]
+        longer = [k for k in TOPIC_SPECS if k != rel and k.endswith('/' + rel)]
         for topic in self.topic_types:
             if (topic == rel or topic.endswith('/' + rel)) and not any(
                     topic == '/' + k or topic.endswith('/' + k) for k in longer):

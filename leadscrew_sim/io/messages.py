@@ -14,7 +14,7 @@ groups of values:
   ``sim/joint_states``, never delayed.
 
 :data:`STATE_VALUES` says which values each state topic carries: a new
-state topic is an entry in :data:`leadscrew_sim.io.topics.TOPICS` and one
+state topic is an entry in :data:`leadscrew_sim.io.topics.TOPIC_SPECS` and one
 here. The value names are the columns of ``LeadScrewModel.run()`` (the
 sensor ones with the prefix ``sensor_`` where a true value has the same name).
 """

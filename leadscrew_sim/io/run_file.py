@@ -115,7 +115,7 @@ class RunWriter:
         topics = (list(T.COMMAND_TOPICS) + list(T.STATE_TOPICS) + list(T.RECORD_TOPICS)
                   + (['/clock'] if clock else []))
         for rel in topics:
-            msg_type, _role, qos = T.TOPICS[rel]
+            msg_type, _role, qos = T.TOPIC_SPECS[rel]
             # exact CDR from our encoders: the recorder need not trim
             self.ids[rel] = self.rec.add_channel(T.resolve(rel, namespace), msg_type,
                                                  qos_profile_yaml(**qos), trim=False)

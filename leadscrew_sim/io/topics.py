@@ -15,7 +15,7 @@ LATCHED_1 = dict(reliability='reliable', durability='transient_local', depth=1)
 
 #: Relative topic name -> (message type, role, QoS). '/clock' is absolute, as the
 #: node publishes it.
-TOPICS = {
+TOPIC_SPECS = {
     'torque_command': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
     'joint_commands': ('sensor_msgs/msg/JointState', 'command', RELIABLE_10),
     'external_force': ('std_msgs/msg/Float64', 'command', RELIABLE_10),
@@ -34,13 +34,13 @@ TOPICS = {
 }
 
 #: The switch topics, in the order of the model's switch states (min, max, home).
-SWITCH_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'switch')
+SWITCH_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role == 'switch')
 
 #: Topics in the order the node registers its recording channels.
-COMMAND_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'command')
-STATE_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'state')
+COMMAND_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role == 'command')
+STATE_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role == 'state')
 #: Topics that are recorded but not published: the thread contact and energy of every tick.
-RECORD_TOPICS = tuple(t for t, (_typ, role, _q) in TOPICS.items() if role == 'record')
+RECORD_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role == 'record')
 
 
 def resolve(topic, namespace='/'):

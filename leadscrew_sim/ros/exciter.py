@@ -16,7 +16,7 @@ import math
 import signal
 import time
 
-from ..io.topics import resolve, TOPICS
+from ..io.topics import resolve, TOPIC_SPECS
 
 __all__ = ['ExciteError', 'Exciter']
 
@@ -126,13 +126,13 @@ class Exciter:
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float64
         from .interfaces import message_class, qos_profile
-        msg_type, _role, qos = TOPICS[self.topic]
+        msg_type, _role, qos = TOPIC_SPECS[self.topic]
         pub = node.create_publisher(message_class(msg_type), self.topic, qos_profile(qos))
         name = resolve(self.topic, node.get_namespace())
         latest = {'x': None}
         sub = node.create_subscription(Float64, 'nut_position',
                                        lambda m: latest.__setitem__('x', m.data),
-                                       qos_profile(TOPICS['nut_position'][2]))
+                                       qos_profile(TOPIC_SPECS['nut_position'][2]))
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         self.out(f'excite: {self.profile.describe()}; {self.profile.duration:.3f} s at '

@@ -7,7 +7,7 @@ __all__ = ['message_class', 'qos_profile']
 
 
 def qos_profile(spec):
-    """Return the rclpy QoSProfile of a QoS dict of :data:`leadscrew_sim.io.topics.TOPICS`."""
+    """Return the rclpy QoSProfile of a QoS dict of :data:`leadscrew_sim.io.topics.TOPIC_SPECS`."""
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=spec['depth'],
                       reliability=ReliabilityPolicy[spec['reliability'].upper()],
                       durability=DurabilityPolicy[spec['durability'].upper()])

@@ -25,7 +25,7 @@ This module is the adapter between the graph and the core: commands go
 through :mod:`.commands` into a :class:`~leadscrew_sim.core.commands.CommandHold`,
 each tick steps the model and hands the encoded states to the publishers and
 the recorder (:mod:`leadscrew_sim.io.recorder`). Topics and QoS come from
-:data:`leadscrew_sim.io.topics.TOPICS`; parameters: :mod:`.parameters`;
+:data:`leadscrew_sim.io.topics.TOPIC_SPECS`; parameters: :mod:`.parameters`;
 diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`.
 """
 import json
@@ -53,7 +53,7 @@ from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
 from ..io.run_file import UPDATE_RECORD
 from ..io.session import StorageOptions
-from ..io.topics import SWITCH_TOPICS, TOPICS
+from ..io.topics import SWITCH_TOPICS, TOPIC_SPECS
 from .commands import CommandInputs
 from .description import RobotDescription
 from .diagnostics import diagnostic_array
@@ -71,8 +71,8 @@ NODE_NAME = 'leadscrew_sim_node'
 NS = 1_000_000_000
 
 
-COMMAND_QOS = qos_profile(TOPICS['torque_command'][2])
-STATE_QOS = qos_profile(TOPICS['joint_states'][2])
+COMMAND_QOS = qos_profile(TOPIC_SPECS['torque_command'][2])
+STATE_QOS = qos_profile(TOPIC_SPECS['joint_states'][2])
 
 
 class LeadScrewSimNode(AxisServices, ClockLoops, Node):
@@ -193,7 +193,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
                      'velocity_command': self._on_velocity,
                      'position_command': self._on_position}
         self._pubs, self._rec_topic = {}, {}
-        for topic, (type_name, role, qos) in TOPICS.items():
+        for topic, (type_name, role, qos) in TOPIC_SPECS.items():
             if role in ('record', 'diagnostics'):   # recorded only; diagnostics: see below
                 if role == 'record':
                     self._rec_topic[topic] = self.resolve_topic_name(topic)
@@ -240,7 +240,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         recorder's default (reliable, keep last 10).
         """
         chans = {self._rec_topic[topic]: (type_name, None, role == 'command')
-                 for topic, (type_name, role, _qos) in TOPICS.items()
+                 for topic, (type_name, role, _qos) in TOPIC_SPECS.items()
                  if topic in self._rec_topic}
         if self._desc is not None:
             chans.update(self._desc.channels())

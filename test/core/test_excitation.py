@@ -12,7 +12,7 @@ from leadscrew_sim import LeadScrewModel, load_preset
 from leadscrew_sim.analysis.excitation import profiles as E
 from leadscrew_sim.core.fields import ParameterError
 from leadscrew_sim.core.params import ScrewParams
-from leadscrew_sim.io.topics import TOPICS
+from leadscrew_sim.io.topics import TOPIC_SPECS
 import numpy as np
 import pytest
 
@@ -166,7 +166,7 @@ def test_registry_kinds_and_topics_match_the_topic_table():
     for name in E.PROFILES:
         prof = E.make_profile(name, p)
         assert prof.topic == f'{prof.kind}_command'
-        assert TOPICS[prof.topic][0] == 'std_msgs/msg/Float64'
+        assert TOPIC_SPECS[prof.topic][0] == 'std_msgs/msg/Float64'
 
 
 def test_simulate_interfaces_torque_and_drive_sources():

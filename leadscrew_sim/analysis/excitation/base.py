@@ -15,12 +15,13 @@ import numpy as np
 
 from ...core.fields import ParameterError
 
-__all__ = ['Builder', 'Profile', 'ProfileError', 'Segment', 'STROKE_MARGIN', 'TOPICS', 'UNITS',
-           'check_speed', 'nut_speed_limit', 'stroke_room']
+__all__ = ['Builder', 'KIND_TOPICS', 'Profile', 'ProfileError', 'Segment', 'STROKE_MARGIN',
+           'UNITS', 'check_speed', 'nut_speed_limit', 'stroke_room']
 
-#: Command topic and unit of each command kind.
-TOPICS = {'torque': 'torque_command', 'velocity': 'velocity_command',
-          'position': 'position_command'}
+#: Command kind -> the node's command topic of its values (their unit: UNITS).
+KIND_TOPICS = {'torque': 'torque_command', 'velocity': 'velocity_command',
+               'position': 'position_command'}
+#: Command kind -> the unit of its values.
 UNITS = {'torque': 'N m', 'velocity': 'm/s', 'position': 'm'}
 
 #: Share of the stroke length kept clear of each end stop by the moves.
@@ -117,7 +118,7 @@ class Profile:
     @property
     def topic(self):
         """Return the node's command topic of the profile."""
-        return TOPICS[self.kind]
+        return KIND_TOPICS[self.kind]
 
     @property
     def unit(self):

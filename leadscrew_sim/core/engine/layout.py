@@ -93,7 +93,7 @@ P_TSCALE = P_DRATE + 30  # motor torque scale 0..1 (a weakened motor delivers th
 P_FINJ = P_DRATE + 31   # 1.0: a drive fault is injected (latched while set)
 NP = P_DRATE + 32       # length of P
 
-# State vector S (float64[NS]) -------------------------------------------------
+# State vector S (float64[N_STATE]) --------------------------------------------
 S_QM = 0        # motor angle [rad]
 S_WM = 1        # motor angle rate [rad/s]
 S_Q = 2         # screw angle [rad]
@@ -139,7 +139,7 @@ S_VS = 41       # nut velocity from the scale (difference quotient, filtered) [m
 S_NSAMP = 42    # sensor samples taken since reset: the index of the next noise pair [-]
 S_JAM = 43      # side the jam blocks: 1 motion toward +x, -1 toward -x, 0 no jam [-]
 S_NREP = 44     # readings reported between drive samples since reset: their noise index [-]
-NS = 45         # length of S
+N_STATE = 45    # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]
