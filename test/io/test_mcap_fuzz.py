@@ -59,7 +59,7 @@ class _Originals(dict):
 
 @pytest.fixture(scope='module')
 def originals(tmp_path_factory):
-    """A short recording in chunks of 32 KiB (lz4, zstd), and what mcap reads of it."""
+    """Write a short recording in chunks of 32 KiB (lz4, zstd); read it back with mcap."""
     d = tmp_path_factory.mktemp('fuzz')
     sim = d / 'sim.mcap'
     assert cli_main(['simulate', '--preset', 'tr12x3', '--duration', '0.4', '-q',
@@ -106,7 +106,7 @@ def originals(tmp_path_factory):
 
 
 def _chunk_messages(one):
-    """The Message records of the magic plus one chunk, as mcap's stream reader reads them."""
+X
     stream = StreamReader(io.BytesIO(one), validate_crcs=True)
     try:
         for record in stream.records:
