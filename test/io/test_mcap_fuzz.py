@@ -106,7 +106,7 @@ def originals(tmp_path_factory):
 
 
 def _chunk_messages(one):
-X
+    """Yield the Message records of the magic plus one chunk, read by mcap's stream reader."""
     stream = StreamReader(io.BytesIO(one), validate_crcs=True)
     try:
         for record in stream.records:
