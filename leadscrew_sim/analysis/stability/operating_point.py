@@ -1,0 +1,158 @@
+"""
+The operating point of steady sliding (physics.md section 12).
+
+The nut slides at a constant speed v [m/s] (sign = direction along +x); the
+screw turns at q' = v / r_t (q sense, r_t = l / 2 pi) and the thread slides at
+v_s0 = v / sin(lambda) (rigid contact). The nut rests on the loaded flank:
+the one whose normal force balances the axial load W the thread carries,
+W = c_x v + F_x0 sgn(v) - F_g - F_ext (guide, gravity, external force). The
+screw's torque balance gives the coupling twist and the motor torque; with
+the servo drive in velocity mode that torque is the integral term of its PI
+loop (or, without an integral, the proportional term of a raised reference).
+
+Only the single nut is handled: an anti-backlash (split) nut is refused.
+"""
+import math
+
+from ...core.engine.friction import friction_constants, mu_apparent
+from ...core.engine.packing import pack_params
+from ...core.params import ParameterError
+
+__all__ = ['DRIVES', 'friction_slope', 'operating_point']
+
+#: The drives of the analysis: the servo's velocity loop, or a prescribed motor angle.
+DRIVES = ('velocity', 'ideal')
+
+
+def friction_slope(P, v):
+    """
+    Return dmu'/dv [s/m] of the package's friction law at the speed |v| > 0.
+
+    The derivative of mu'(v) = mu_k' + (mu_s' - mu_k') exp(-(v/v_st)^d) + mu_v' v
+    (friction.mu_apparent on the parameter vector P); 0 where the law clips at 0.
+
+    Parameters
+    ----------
+    P : numpy.ndarray
+        The packed parameter vector.
+    v : float
+        Sliding speed [m/s].
+
+    """
+    a = abs(v)
+    if mu_apparent(P, a) <= 0.0:
+        return 0.0
+    _, muv, drop, vst, _, dst, _ = friction_constants(P)
+    slope = muv
+    if drop != 0.0:
+        z = a / vst
+        slope -= drop * dst * z ** (dst - 1.0) / vst * math.exp(-z ** dst)
+    return slope
+
+
+def load_factor(mu, tan_l, sigma_s):
+    """
+    Return the signed load factor G of physics.md section 2 (T = r_m W G).
+
+    G+ = (tan + mu) / (1 - mu tan) when the drive moves against the load
+    (sigma_s = +1), -G- = (tan - mu) / (1 + mu tan) when the load assists (-1).
+
+    Parameters
+    ----------
+    mu : float
+        Apparent friction coefficient mu' [-].
+    tan_l : float
+        tan(lambda) [-].
+    sigma_s : float
+        +1 against the load, -1 with it.
+
+    """
+    return (tan_l + sigma_s * mu) / (1.0 - sigma_s * mu * tan_l)
+
+
+def operating_point(params, speed, drive='velocity'):
+    """
+    Return the steady sliding state of the axis at nut speed ``speed``, q sense.
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The axis.
+    speed : float
+        Nut speed [m/s], nonzero; its sign is the direction along +x.
+    drive : str
+        'velocity' (the servo's velocity loop holds the speed) or 'ideal'
+        (the motor angle is prescribed).
+
+    Returns
+    -------
+    dict
+        speed, omega (q' [rad/s]), s (sgn v), sigma (+1 leading flank loaded,
+        -1 trailing), vs0 [m/s], mu0 [-], slope (dmu'/dv [s/m]), load W [N],
+        N0 (signed normal force [N]), Fa0 (axial thread force [N]), torque
+        (motor torque [N m], q sense), twist (q_m - q [rad]), delta0 (x - r_t q
+        [m]), G, J_e [kg m^2] and the drive's w_ref [rad/s] and integral [rad].
+
+    Raises
+    ------
+    ParameterError
+        For a zero speed, an unknown drive, a split nut, an unloaded thread or a
+        torque beyond max_torque.
+
+    """
+    p = params
+    v = float(speed)
+    if not (math.isfinite(v) and v != 0.0):
+        raise ParameterError('speed', f'{speed!r} m/s must be nonzero and finite')
+    if drive not in DRIVES:
+        raise ParameterError('drive', f'{drive!r} is not one of {", ".join(DRIVES)}')
+    if p.anti_backlash:
+        raise ParameterError('anti_backlash', 'true: the stability analysis handles the '
+                             'single nut only (set it false)')
+    P = pack_params(p)
+    lam = p.lead_angle
+    sl, cl, tl = math.sin(lam), math.cos(lam), math.tan(lam)
+    rt, rm = p.lead_ratio, p.r_m
+    s = 1.0 if v > 0.0 else -1.0
+    omega = v / rt
+    vs0 = v / sl
+    mu0 = mu_apparent(P, vs0)
+    slope = friction_slope(P, vs0)
+    m = p.nut_mass + p.payload_mass
+    f_g = -m * p.gravity * math.sin(p.inclination)
+    load = p.guide_viscous * v + p.guide_coulomb * s - f_g - p.external_force
+    if load == 0.0:
+        raise ParameterError('speed', f'{v!r} m/s leaves the thread unloaded (no axial load): '
+                             'the nut floats in the backlash; add a load or guide damping')
+    sigma = 1.0 if load > 0.0 else -1.0
+    den = cl - sigma * s * mu0 * sl
+    if den <= 0.0:
+        raise ParameterError('mu_k', f"mu' tan(lambda) = {mu0 * tl:.3g} >= 1 at "
+                             f'{v!r} m/s: the thread jams')
+    n_abs = abs(load) / den
+    n0 = sigma * n_abs
+    ff0 = -mu0 * n_abs * s
+    fa0 = n0 * cl + ff0 * sl
+    t_thread = rm * (-n0 * sl + ff0 * cl)
+    t_res = p.bearing_viscous * omega + (p.bearing_coulomb
+                                         + p.collar_mu * p.collar_radius * abs(fa0)) * s
+    torque = t_res - t_thread
+    if abs(torque) > p.max_torque:
+        raise ParameterError('max_torque', f'{p.max_torque!r} N m is below the {abs(torque):.4g}'
+                             f' N m steady sliding at {v!r} m/s needs')
+    rigid = p.coupling_stiffness == 0.0
+    twist = 0.0 if rigid else torque / p.coupling_stiffness
+    delta0 = -sigma * (p.backlash / 2.0 + n_abs * cl / p.contact_stiffness)
+    g = load_factor(mu0, tl, sigma * s)
+    j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + m * rm * rt * g
+    kv, ti = p.velocity_gain, p.velocity_integral_time
+    if ti > 0.0:
+        w_ref, integral = omega, (torque * ti / kv if kv > 0.0 else 0.0)
+    else:
+        w_ref, integral = omega + (torque / kv if kv > 0.0 else 0.0), 0.0
+    if drive == 'velocity' and kv == 0.0:
+        raise ParameterError('velocity_gain', '0 N m s/rad: the velocity loop cannot hold a '
+                             'speed (give a gain > 0, or use the ideal drive)')
+    return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0, slope=slope,
+                load=load, N0=n0, Fa0=fa0, torque=torque, twist=twist, delta0=delta0, G=g,
+                J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive, P=P)
