@@ -1,0 +1,96 @@
+"""
+Nonlinear stability runs against physics.md section 12's closed forms.
+
+Exact Coulomb stick-slip (period and stick fraction from the closed form
+derived here) and the subcritical Hopf point of the exponential Stribeck law
+(a bistable case just above the linear threshold speed).
+"""
+import math
+
+from scipy.optimize import brentq
+
+from leadscrew_sim.analysis.stability import linear_stability
+from leadscrew_sim.analysis.stability.nonlinear import measure, nonlinear_stability
+from leadscrew_sim.core.params import ScrewParams
+
+
+def coulomb_axis():
+    """
+    Return a vertical axis with Coulomb friction, an undamped coupling and a stiff contact.
+
+    The contact is well damped (its own mode dies out within each stick): the
+    closed form takes the contact as rigid.
+    """
+    return ScrewParams(mu_s=0.3, mu_k=0.15, stribeck_velocity=1e-6, mu_viscous=0.0,
+                       coupling_stiffness=2.0, coupling_damping=0.0, bearing_viscous=0.0,
+                       guide_viscous=0.0, contact_stiffness=1e9, contact_damping=1e5,
+                       payload_mass=20.0,
+                       screw_inertia=8e-6)
+
+
+def closed_form(p, v):
+    """Return (period, stick fraction) of exact Coulomb stick-slip (physics.md 12)."""
+    lead = p.pitch * p.starts
+    rm = (p.major_diameter - p.pitch / 2.0) / 2.0
+    rt = lead / (2 * math.pi)
+    lam = math.atan(lead / (2 * math.pi * rm))
+    tl = math.tan(lam)
+    tf = 1.0 / math.cos(math.atan(math.tan(math.radians(15.0)) * math.cos(lam)))
+    m = p.nut_mass + p.payload_mass
+    w = m * p.gravity
+
+    def g(mu):
+        return (tl + mu * tf) / (1 - mu * tf * tl)
+
+    t_s, t_k = rm * w * g(p.mu_s), rm * w * g(p.mu_k)
+    delta = (t_s - t_k) / p.coupling_stiffness
+    j_e = p.screw_inertia + m * rm * rt * g(p.mu_k)
+    wn = math.sqrt(p.coupling_stiffness / j_e)
+    omega = v / rt
+    stick = 2 * delta / omega
+    period = stick + (math.pi + 2 * math.atan(omega / (wn * delta))) / wn
+    return period, stick / period
+
+
+def test_measure_sine():
+    """The window measures of a sampled sine: amplitude, period, stick share."""
+    import numpy as np
+    t = np.arange(20000) * 1e-4
+    vel = 1e-3 + 2e-3 * np.sin(2 * math.pi * t / 0.037)
+    stuck = (np.arange(20000) % 4 == 0).astype(float)
+    amp, frac, period = measure(vel, stuck, 1e-4)
+    assert abs(amp - 2e-3) < 2e-3 * 1e-3
+    assert abs(period - 0.037) < 0.037 * 1e-4
+    assert frac == 0.25
+
+
+def test_coulomb_stick_slip_closed_form():
+    """Period and stick fraction within 1 % of the closed form."""
+    p, v = coulomb_axis(), 2e-3
+    period, frac = closed_form(p, v)
+    row = nonlinear_stability(p, v, 'ideal', duration=1.0, dt=1e-4)
+    assert row['verdict'] in ('limit_cycle', 'bistable')
+    assert abs(row['period'] - period) < 0.01 * period, (row['period'], period)
+    assert abs(row['stick_fraction'] - frac) < 0.01 * frac, (row['stick_fraction'], frac)
+
+
+def stribeck_axis():
+    """Return a vertical axis with an exponential Stribeck drop and a damped coupling."""
+    return ScrewParams(mu_s=0.3, mu_k=0.15, stribeck_velocity=1e-3, stribeck_exponent=1.0,
+                       coupling_stiffness=2.0, coupling_damping=2e-4, bearing_viscous=1e-4,
+                       guide_viscous=5.0, contact_stiffness=1e9, contact_damping=1e3,
+                       payload_mass=20.0, screw_inertia=8e-6)
+
+
+def test_subcritical_hopf_bistable():
+    """Just above the linear threshold speed: a small start decays, a large one sticks and slips."""
+    p = stribeck_axis()
+    v_c = brentq(lambda v: linear_stability(p, v, 'ideal')['growth_rate'], 2e-5, 2e-3,
+                 xtol=1e-9)
+    v = 1.15 * v_c
+    assert linear_stability(p, v, 'ideal')['growth_rate'] < 0.0
+    row = nonlinear_stability(p, v, 'ideal', duration=1.5)
+    assert row['verdict'] == 'bistable', row
+    assert row['amplitude_large'] > 0.5 * v and row['stick_fraction'] > 0.1
+    below = nonlinear_stability(p, 0.85 * v_c, 'ideal', duration=1.5)
+    assert below['verdict'] == 'limit_cycle', below
