@@ -83,7 +83,7 @@ def stribeck_axis():
 
 
 def test_subcritical_hopf_bistable():
-    """Just above the linear threshold speed: a small start decays, a large one sticks and slips."""
+    """Just above the linear threshold: a small start decays, a large one sticks and slips."""
     p = stribeck_axis()
     v_c = brentq(lambda v: linear_stability(p, v, 'ideal')['growth_rate'], 2e-5, 2e-3,
                  xtol=1e-9)
