@@ -1,0 +1,204 @@
+"""
+Running the cases of a grid: in this process, on local worker processes, or on Dask.
+
+The cases go out in batches (contiguous runs of cases); each batch returns
+its rows and the rows are put back in case order, so the table is the same,
+bit for bit, however the work was distributed: every case runs the same code
+on its own model, and the model is deterministic.
+
+Local workers are spawned processes (``multiprocessing`` 'spawn' context;
+no state is inherited). numba's on-disk cache is not safe against several
+processes compiling and writing the same entries at once (numba issue
+4807), so the parent warms the kernel first: it compiles (or loads) and
+caches every function a case uses, and the workers then only read the
+cache. Each worker warms its own kernel once, in its initializer, before its
+first batch. Dask workers warm theirs on their first batch (once per
+process); the client warms the cache before it submits, which covers workers
+that share the client's NUMBA_CACHE_DIR.
+
+Ctrl-C (KeyboardInterrupt) stops the run: the finished rows are kept and the
+result says it is incomplete. An unreachable Dask scheduler fails within
+SCHEDULER_TIMEOUT seconds.
+"""
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+import sys
+
+import numpy as np
+
+__all__ = ['identical', 'run_batch', 'run_cases', 'SCHEDULER_TIMEOUT', 'warm']
+
+SCHEDULER_TIMEOUT = 8.0     #: seconds to reach a Dask scheduler (the error comes within 10 s)
+BATCHES_PER_WORKER = 4      #: batches per worker (load balance against per-batch cost)
+_WARM = []                  # set once this process has warmed its kernel
+
+
+def warm():
+    """Compile or load the kernel and the analysis once in this process (a tiny case)."""
+    if _WARM:
+        return
+    from ...core.params import ScrewParams
+    from .grid import run_case
+    run_case(ScrewParams(), {}, 1e-3, 'velocity', 'both', 0.01)
+    run_case(ScrewParams(coupling_stiffness=2.0), {}, 1e-3, 'ideal', 'both', 0.01)
+    _WARM.append(True)
+
+
+def run_batch(base, cases, speed, drive, method, duration):
+    """
+    Return the rows of a batch of cases (warming this process's kernel first).
+
+    Parameters
+    ----------
+    base : ScrewParams
+        The base parameters.
+    cases : list of dict
+        Swept name -> value, one per case.
+    speed : float or None
+        Nut speed [m/s] unless swept.
+    drive : str
+        'velocity' or 'ideal'.
+    method : str
+        'linear', 'nonlinear' or 'both'.
+    duration : float
+        Length of each nonlinear run [s].
+
+    """
+    from .grid import run_case
+    warm()
+    return [run_case(base, c, speed, drive, method, duration) for c in cases]
+
+
+def _batches(n, workers):
+    size = max(1, math.ceil(n / (max(1, workers) * BATCHES_PER_WORKER)))
+    return [(i, min(n, i + size)) for i in range(0, n, size)]
+
+
+class _Progress:
+    """A text progress bar on stderr, drawn only when stderr is a terminal."""
+
+    def __init__(self, total, enabled):
+        self.total, self.done = total, 0
+        self.on = enabled and sys.stderr.isatty()
+
+    def add(self, k):
+        self.done += k
+        if self.on:
+            w = 30
+            f = int(w * self.done / max(1, self.total))
+            sys.stderr.write(f'\r[{"#" * f}{"." * (w - f)}] {self.done}/{self.total} cases')
+            sys.stderr.flush()
+
+    def close(self):
+        if self.on:
+            sys.stderr.write('\n')
+
+
+def _local(args, spans, cases, workers, bar, rows):
+    if workers <= 1 or len(spans) <= 1:
+        for a, b in spans:
+            rows[a:b] = run_batch(args[0], cases[a:b], *args[1:])
+            bar.add(b - a)
+        return
+    warm()                      # the parent fills numba's cache before any worker starts
+    ctx = multiprocessing.get_context('spawn')
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=warm)
+    try:
+        futs = {pool.submit(run_batch, args[0], cases[a:b], *args[1:]): (a, b)
+                for a, b in spans}
+        for fut in cf.as_completed(futs):
+            a, b = futs[fut]
+            rows[a:b] = fut.result()
+            bar.add(b - a)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _dask(args, spans, cases, scheduler, bar, rows):
+    from ...core.params import ParameterError
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ParameterError('scheduler', 'needs dask[distributed] (pip install '
+                             '-r requirements.txt)') from None
+    try:
+        client = Client(scheduler, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ParameterError('scheduler', f'{scheduler!r}: no Dask scheduler reached within '
+                             f'{SCHEDULER_TIMEOUT:g} s ({type(exc).__name__})') from None
+    try:
+        warm()
+        futs = [client.submit(run_batch, args[0], cases[a:b], *args[1:], pure=False)
+                for a, b in spans]
+        for fut, (a, b) in zip(futs, spans):     # collected in submission order
+            rows[a:b] = fut.result()
+            bar.add(b - a)
+    finally:
+        client.close()
+
+
+def run_cases(base, cases, speed, drive='velocity', method='both', duration=2.0,
+              workers=None, scheduler=None, progress=False):
+    """
+    Run every case and return (rows, complete): rows in case order, None where not run.
+
+    Parameters
+    ----------
+    base : ScrewParams
+        The base parameters.
+    cases : list of dict
+        Swept name -> value, one per case.
+    speed : float or None
+        Nut speed [m/s] unless swept.
+    drive : str
+        'velocity' or 'ideal'.
+    method : str
+        'linear', 'nonlinear' or 'both'.
+    duration : float
+        Length of each nonlinear run [s].
+    workers : int, optional
+        Local worker processes (default: the number of cores; 1: this process).
+    scheduler : str, optional
+        A Dask scheduler address (tcp://HOST:PORT): run there instead.
+    progress : bool
+        Draw a progress bar on stderr if it is a terminal.
+
+    """
+    workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if workers < 1:
+        from ...core.params import ParameterError
+        raise ParameterError('workers', f'{workers} is below the allowed minimum 1')
+    rows = [None] * len(cases)
+    args = (base, speed, drive, method, duration)
+    spans = _batches(len(cases), workers if scheduler is None else 8)
+    bar = _Progress(len(cases), progress)
+    complete = True
+    try:
+        if scheduler is None:
+            _local(args, spans, cases, workers, bar, rows)
+        else:
+            _dask(args, spans, cases, scheduler, bar, rows)
+    except KeyboardInterrupt:
+        complete = False
+    finally:
+        bar.close()
+    return rows, complete
+
+
+def identical(rows_a, rows_b):
+    """Return True if two row lists are equal bit for bit (NaN equal to NaN)."""
+    if len(rows_a) != len(rows_b):
+        return False
+    for a, b in zip(rows_a, rows_b):
+        if a.keys() != b.keys():
+            return False
+        for k in a:
+            x, y = a[k], b[k]
+            if isinstance(x, float) and isinstance(y, float):
+                if np.float64(x).tobytes() != np.float64(y).tobytes():
+                    return False
+            elif x != y:
+                return False
+    return True
