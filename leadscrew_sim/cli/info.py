@@ -3,10 +3,9 @@ import os
 
 import numpy as np
 
-from ..offline.options import NS, Progress, RunError
+from ..offline.options import NS, open_recording, Progress, RunError
 from ..offline.replay import Resim
 from ..io import cdr as C, messages as M
-from ..io.mcap_reader import Recording
 from ..io.run_file import PARAMS_RECORD
 
 HELP = 'one screen about a recording'
@@ -26,7 +25,7 @@ def add_arguments(p):
 
 def run(args):
     """Print one screen about a recording; return the exit status."""
-    rec = Recording(args.file)
+    rec = open_recording(args.file)
     rec.require_ros2()
     meta = rec.record(PARAMS_RECORD)
     figures = _figures_profile(args, rec) if meta is not None else None
@@ -101,7 +100,7 @@ def _print_figures(args, rec, meta, name):
 
 def _print_channels(args, rec):
     """Print the file, its duration and the message count and rate [Hz] of each channel."""
-    st = rec.summary.statistics
+    st = rec.statistics()
     size = os.path.getsize(args.file)
     counts = dict(st.channel_message_counts) if st else {}
     t_first = st.message_start_time if st and st.message_count else 0

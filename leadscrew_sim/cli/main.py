@@ -8,7 +8,7 @@ for tracebacks.
 import os
 import sys
 
-from . import excite, identify, info, play, plot, resim, simulate, stability
+from . import excite, identify, info, play, plot, recover, resim, simulate, stability
 from .args import Parser, PROG, UsageError
 from ..offline.options import RunError
 from ..core.params import ParameterError
@@ -18,7 +18,7 @@ from ..io.run_file import RunFileError
 #: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
 VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
          ('play', play), ('plot', plot), ('excite', excite), ('identify', identify),
-         ('stability', stability))
+         ('stability', stability), ('recover', recover))
 
 
 def build_parser():

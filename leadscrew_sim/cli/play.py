@@ -8,10 +8,9 @@ import sys
 import time
 
 from .args import PROG
-from ..offline.options import NS, RunError
+from ..offline.options import NS, open_recording, RunError
 from ..core import yamlio
 from ..io import messages as M
-from ..io.mcap_reader import Recording
 
 HELP = 'republish a recording with its timing'
 
@@ -119,7 +118,7 @@ def run(args):
     """Republish a recording with its original timing; return the exit status."""
     if not (math.isfinite(args.rate) and args.rate > 0):
         raise RunError(f'--rate {args.rate} must be > 0')
-    rec = Recording(args.file, topics=args.topics)
+    rec = open_recording(args.file, topics=args.topics)
     rec.require_ros2()
     remap = _parse_remaps(args.remap)
     if args.topics:

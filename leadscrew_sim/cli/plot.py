@@ -3,10 +3,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..offline.options import NS, Progress, RunError
+from ..offline.options import NS, open_recording, Progress, RunError
 from ..offline.replay import Resim
 from ..io import cdr as C, messages as M
-from ..io.mcap_reader import Recording
 
 HELP = 'four-panel PNG of a leadscrew_sim recording'
 
@@ -52,7 +51,7 @@ def _recorded(rec):
 
 def run(args):
     """Write one PNG with four panels (from the file, or re-simulated for an older file)."""
-    rec = Recording(args.file)
+    rec = open_recording(args.file)
     sim = Resim(rec)
     recorded = _recorded(rec)
     if recorded is not None:

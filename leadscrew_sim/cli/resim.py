@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from .args import add_compression_argument
-from ..offline.options import compression_of, gc_paused, parse_sets, Progress, RunError
+from ..offline.options import (compression_of, gc_paused, open_recording, parse_sets,
+                               Progress, RunError)
 from ..offline.replay import Resim
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
-from ..io.mcap_reader import Recording
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, RunWriter
 
 HELP = 're-simulate a recording and compare'
@@ -177,7 +177,7 @@ def _run(args):
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
         raise RunError('resim --set accepts physics parameters only')
-    sim = Resim(Recording(args.file, load_messages=False), phys_ov)
+    sim = Resim(open_recording(args.file, load_messages=False), phys_ov)
     src = Path(args.file)
     out = args.output or str(src.with_name(src.name[:-5] if src.name.endswith('.mcap')
                                            else src.name)) + '.resim.mcap'

@@ -7,6 +7,7 @@ leadscrew_sim run file (:mod:`.run_file`) from others.
 from concurrent.futures import ThreadPoolExecutor
 import os
 import struct
+import types
 import zlib
 
 import lz4.frame
@@ -180,8 +181,8 @@ class Recording:
         except (OSError, ValueError) as exc:
             raise RecordingError(f'{self.path}: {exc}') from None
         if found.header is None or not found.channels:
-            raise RecordingError(f'{self.path}: truncated or corrupt MCAP file ({why}; '
-                                 f'{found.problem or "no channel"}): nothing whole to read')
+            raise RecordingError(f'{self.path}: truncated or corrupt MCAP file, nothing whole '
+                                 f'to read ({found.problem or why})')
         self.header, self.summary = found.header, None
         self.metadata = list(found.metadata)
         self.channels, self.schemas = dict(found.channels), dict(found.schemas)
@@ -198,6 +199,24 @@ class Recording:
         self.cut = (f'{found.problem or "its summary is unreadable"}; read '
                     f'{len(found.messages)} messages{span}, up to byte {found.end} of '
                     f'{found.size}')
+
+    def statistics(self):
+        """
+        Return the summary's Statistics record, or for a cut file the same figures of its messages.
+
+        The figures used are ``message_count``, ``message_start_time``,
+        ``message_end_time`` [ns] and ``channel_message_counts`` (channel id -> count).
+        """
+        if self.summary is not None:
+            return self.summary.statistics
+        cid = {c.topic: i for i, c in self.channels.items()}
+        counts = {}
+        for _t, topic, _d in self.messages:
+            counts[cid[topic]] = counts.get(cid[topic], 0) + 1
+        times = [m[0] for m in self.messages]
+        return types.SimpleNamespace(
+            message_count=len(times), message_start_time=min(times, default=0),
+            message_end_time=max(times, default=0), channel_message_counts=counts)
 
     def record(self, name):
         """Return the first metadata record called ``name`` (or None)."""

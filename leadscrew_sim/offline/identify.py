@@ -21,11 +21,10 @@ import numpy as np
 
 from .identify_inputs import fit_names, start_params
 from .identify_problem import Problem
-from .options import RunError
+from .options import open_recording, RunError
 from ..analysis.identify.bootstrap import bootstrap
 from ..analysis.identify import fit as ident
 from ..core.params import ScrewParams
-from ..io.mcap_reader import Recording
 
 
 def hints(cols):
@@ -79,7 +78,7 @@ def fit_recording(args):
     if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
         raise RunError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
     t_wall = time.perf_counter()
-    rec = Recording(args.file)
+    rec = open_recording(args.file)
     rec.require_ros2()
     start, label = start_params(args, rec)
     problem = Problem(args, rec, start)

@@ -18,6 +18,7 @@ from ..core.faults import SimulationFault
 from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, physics_subset, read_parameter_file
+from ..io.mcap_reader import Recording
 
 #: Nanoseconds per second.
 NS = 1_000_000_000
@@ -234,3 +235,25 @@ def gc_paused():
     finally:
         if enabled:
             gc.enable()
+
+
+def open_recording(path, **kwargs):
+    """
+    Open a recording (:class:`leadscrew_sim.io.mcap_reader.Recording`), saying if it is cut.
+
+    A file cut short by a crash is read up to its last whole chunk, with one
+    warning line on stderr that names ``leadscrew_sim recover``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The MCAP file.
+    **kwargs
+        ``topics``, ``load_messages``: as Recording takes them.
+
+    """
+    rec = Recording(path, **kwargs)
+    if rec.cut:
+        print(f'leadscrew_sim: warning: {path} is cut short or damaged ({rec.cut}); '
+              f'`leadscrew_sim recover {path}` writes a complete copy', file=sys.stderr)
+    return rec
