@@ -387,7 +387,23 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
     assert {b - a for a, b in zip(stamps, stamps[1:])} == {MS}
     assert {s for s in live_js if s < bound} <= set(rec)
     assert all(rec[s] == live_js[s] for s in live_js if s in rec)
+    # The verb writes the same repair, and says what it saved and where the file stops.
+    verb = tmp_path / 'verb.mcap'
+    r = cli_ok('recover', path, '-o', verb)
+    assert f'{n} messages' in r.stdout and 'stops being whole at byte' in r.stdout, r.stdout
+    assert [m[:3] for m in read_mcap(verb)[0]] == [m[:3] for m in msgs]
+    with AnyReader([verb]) as reader:            # an independent reader takes the copy
+        assert sum(1 for c in reader.connections if c.topic == '/joint_states') == 1
+        assert sum(1 for _ in reader.messages()) == n
+    # info and resim read the cut file itself up to its last whole chunk, with a warning.
+    for verb_args in (('info', path), ('resim', path, '-q', '-o', tmp_path / 'cut.resim.mcap')):
+        r = cli_ok(*verb_args)
+        warn = [line for line in r.stderr.splitlines() if 'warning' in line]
+        assert len(warn) == 1 and 'recover' in warn[0], r.stderr
     if MCAP_CLI.exists():
+        doc = subprocess.run([str(MCAP_CLI), 'doctor', str(verb)], capture_output=True,
+                             text=True, timeout=60)
+        assert doc.returncode == 0, doc.stdout + doc.stderr
         # The independent tool recovers the same file into one its own doctor accepts,
         # with the same joint_states (its order of records is its own).
         go = tmp_path / 'go.mcap'
