@@ -13,14 +13,14 @@ HELP = 'one screen about a recording'
 
 def add_arguments(p):
     """Add the options of ``info`` to parser ``p``."""
-    p.add_argument('file')
+    p.add_argument('file', help='the recording (any ros2-profile MCAP)')
     p.add_argument('--no-resim', action='store_true',
                    help='skip the re-simulation (stick fraction, energy)')
     p.add_argument('--figures', metavar='PROFILE', nargs='?', const='auto',
                    help='also print the derived figures of an identification run (breakaway, '
                         'sweep, reversals, iso230; without a name: the profile simulate '
                         '--excite recorded)')
-    p.add_argument('--quiet', '-q', action='store_true')
+    p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
 
 
 def run(args):
@@ -71,6 +71,7 @@ def _figures_profile(args, rec):
 def _print_figures(args, rec, meta, name):
     """Print the derived figures of an identification profile run (core.figures)."""
     from ..analysis import figures as F
+    from .figure_lines import format_figures
     from ..analysis.excitation.profiles import PROFILES
     from ..io.run_file import params_from_record
     kind = PROFILES[name].kind
@@ -94,7 +95,7 @@ def _print_figures(args, rec, meta, name):
     params, _missing = params_from_record(meta)
     print(f'derived figures of the {name} run (core.figures, from joint_states and '
           f'{kind}_command):')
-    for line in F.format_figures(F.derived_figures(name, run, load=F.axial_load(params))):
+    for line in format_figures(F.derived_figures(name, run, load=F.axial_load(params))):
         print('  ' + line)
 
 

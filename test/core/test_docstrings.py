@@ -1,5 +1,5 @@
 """
-The public core API documents every argument in numpydoc Parameters sections.
+The public core and analysis APIs document every argument in numpydoc Parameters sections.
 
 As python-control checks its own API:
 
@@ -16,12 +16,27 @@ from leadscrew_sim import core
 from leadscrew_sim.core import commands, delivery, drive_modes, fields, presets
 from leadscrew_sim.core.engine import drive
 from leadscrew_sim.core.settings import RunSettings
+from leadscrew_sim.analysis import figures, linear, stability
+from leadscrew_sim.analysis.excitation import profiles
+from leadscrew_sim.analysis.identify import fit
 
 #: The public core API: model construction, stepping, running, parameters.
 API = [core.LeadScrewModel, core.ScrewParams, core.load_preset, presets.preset_path,
        presets.read_parameter_file, presets.physics_subset, fields.field,
        commands.CommandHold, RunSettings, delivery.StateDelivery, delivery.lost_samples,
        drive.command_rows, drive_modes.mode_code]
+
+#: The public analysis API: identification, excitation profiles, figures, the drive's
+#: linear design and the stability of steady sliding.
+ANALYSIS_API = [fit.fit, fit.coordinates, fit.bounds, fit.typical_size, fit.FitResult,
+                profiles.make_profile, profiles.static_breakaway, profiles.BreakawayRamp,
+                profiles.SpeedSweep, profiles.Reversals, profiles.Iso230,
+                figures.breakaway_torques, figures.stribeck_points, figures.axial_load,
+                figures.efficiencies, figures.reversal_error, figures.derived_figures,
+                figures.hold_series, linear.total_inertia, linear.design_gains,
+                linear.closed_loop, linear.loop_response] + [
+                    getattr(stability, name) for name in stability.__all__
+                    if callable(getattr(stability, name))]
 
 
 def documented_parameters(doc):
@@ -62,7 +77,7 @@ def signature_arguments(fn):
 
 def public_callables():
     """Yield (label, function, docstring holding its Parameters) of the public API."""
-    for obj in API:
+    for obj in API + ANALYSIS_API:
         if inspect.isclass(obj):
             if '__init__' in vars(obj):
                 yield obj.__name__, obj.__init__, obj.__doc__ or ''

@@ -104,7 +104,17 @@ class BreakawayRamp(Profile):
     }
 
     def defaults(self, params, given):
-        """Return the defaults: centre in the static band, peak 1.5 x nominal breakaway."""
+        """
+        Return the defaults: centre in the static band, peak 1.5 x nominal breakaway.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        given : dict
+            The options the user gave, by name (SI units).
+
+        """
         t_pos, t_neg = static_breakaway(params)
         lo, hi = min(t_pos, t_neg), max(t_pos, t_neg)
         center = 0.0 if lo < 0.0 < hi else 0.5 * (lo + hi)
@@ -116,7 +126,17 @@ class BreakawayRamp(Profile):
                     abort_travel=2e-4)
 
     def build(self, params, o):
-        """Return the dwells and ramps."""
+        """
+        Return the dwells and ramps.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        o : dict
+            Every option of the profile, by name (SI units), defaults filled in.
+
+        """
         if abs(o['center']) + o['peak'] > params.max_torque:
             self.fail('peak', f'with centre {o["center"]:g} N m exceeds max_torque '
                       f'{params.max_torque:g} N m (the motor would clip the ramp)')
@@ -185,7 +205,17 @@ class SpeedSweep(Profile):
     }
 
     def defaults(self, params, given):
-        """Return the defaults: v_min below the Stribeck velocity, v_max within stroke."""
+        """
+        Return the defaults: v_min below the Stribeck velocity, v_max within stroke.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        given : dict
+            The options the user gave, by name (SI units).
+
+        """
         v_min = max(1e-6, 0.25 * params.stribeck_velocity * math.sin(params.lead_angle))
         lo, hi = stroke_room(params)
         x0 = params.initial_position
@@ -218,7 +248,17 @@ class SpeedSweep(Profile):
         return sum(v * (o['settle'] + o['measure']) for v in self.speeds(o))
 
     def build(self, params, o):
-        """Return the levels of both directions, fastest first, and the stop."""
+        """
+        Return the levels of both directions, fastest first, and the stop.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        o : dict
+            Every option of the profile, by name (SI units), defaults filled in.
+
+        """
         if o['first'] == 0:
             self.fail('first', 'must be +1 or -1')
         if o['v_max'] < o['v_min']:
@@ -267,12 +307,32 @@ class Reversals(Profile):
     }
 
     def defaults(self, params, given):
-        """Return the defaults: 3 backlashes (at least 0.2 mm) around the initial position."""
+        """
+        Return the defaults: 3 backlashes (at least 0.2 mm) around the initial position.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        given : dict
+            The options the user gave, by name (SI units).
+
+        """
         return dict(center=params.initial_position, amplitude=max(3.0 * params.backlash, 2e-4),
                     cycles=5, dwell=0.5, speed=min(2e-3, 0.2 * nut_speed_limit(params)))
 
     def build(self, params, o):
-        """Return the moves and dwells."""
+        """
+        Return the moves and dwells.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        o : dict
+            Every option of the profile, by name (SI units), defaults filled in.
+
+        """
         check_speed(self, params, o['speed'])
         lo, hi = stroke_room(params)
         c, a = o['center'], o['amplitude']
@@ -321,7 +381,17 @@ class Iso230(Profile):
     }
 
     def defaults(self, params, given):
-        """Return the defaults: 5 targets over half the stroke, 5 cycles."""
+        """
+        Return the defaults: 5 targets over half the stroke, 5 cycles.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        given : dict
+            The options the user gave, by name (SI units).
+
+        """
         lo, hi = stroke_room(params)
         overshoot = max(5.0 * params.backlash, 5e-4)
         return dict(center=0.5 * (lo + hi), travel=0.5 * (hi - lo - 2.0 * overshoot),
@@ -344,7 +414,17 @@ class Iso230(Profile):
         return out
 
     def build(self, params, o):
-        """Return the ascending and descending passes of every cycle."""
+        """
+        Return the ascending and descending passes of every cycle.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        o : dict
+            Every option of the profile, by name (SI units), defaults filled in.
+
+        """
         check_speed(self, params, o['speed'])
         lo, hi = stroke_room(params)
         pos = self._positions(o)

@@ -156,7 +156,41 @@ def coordinates(names, params, fixed_bounds=None):
 
 @dataclasses.dataclass
 class FitResult:
-    """What :func:`fit` found: values, intervals, correlations, verdicts and its cost."""
+    """
+    What :func:`fit` found: values, intervals, correlations, verdicts and its cost.
+
+    Parameters
+    ----------
+    names : list of str
+        The fitted parameters.
+    initial, values : list of float
+        Their start and end values [their units].
+    lower, upper : list of float
+        The 95 % interval of each [their units] (NaN where none).
+    std : list of float
+        The standard error of each [their units].
+    correlation : numpy.ndarray
+        Their correlation matrix.
+    verdicts : list of Verdict
+        Identified or not, and why, for each.
+    rms : numpy.ndarray
+        The residual RMS of each signal, in noise units.
+    n_residuals, dof : int
+        Residuals compared, and their degrees of freedom.
+    bandwidth : int
+        Correlation length of the residuals [samples].
+    nfev : int
+        Re-simulations made.
+    wall : float
+        Wall time [s].
+    message : str
+        The optimiser's last message.
+    singular_values : numpy.ndarray, optional
+        Of the weighted Jacobian at the end.
+    rms_initial : numpy.ndarray, optional
+        The residual RMS at the start.
+
+    """
 
     names: list
     initial: list
@@ -177,11 +211,27 @@ class FitResult:
     rms_initial: np.ndarray = None
 
     def value(self, name):
-        """Return the value of parameter ``name`` (fitted, or kept at its start)."""
+        """
+        Return the value of parameter ``name`` (fitted, or kept at its start).
+
+        Parameters
+        ----------
+        name : str
+            A fitted parameter.
+
+        """
         return self.values[self.names.index(name)]
 
     def verdict(self, name):
-        """Return the :class:`~.data.Verdict` of parameter ``name``."""
+        """
+        Return the :class:`~.data.Verdict` of parameter ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A fitted parameter.
+
+        """
         return self.verdicts[self.names.index(name)]
 
 
