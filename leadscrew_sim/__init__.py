@@ -1,10 +1,15 @@
 """
 leadscrew_sim: a lead screw axis simulator (physics core, ROS 2 node, MCAP tools).
 
-Layers, with imports running one way (``core <- io <- {ros, cli}``):
+Layers, with imports running one way (``core <- analysis``, ``core <- io``,
+``{core, analysis, io} <- offline``, ``{core, io} <- ros``, ``offline <- cli``):
 
-- :mod:`leadscrew_sim.core`: the physics (numpy and numba only);
+- :mod:`leadscrew_sim.core`: the simulator's public API (numpy and numba only),
+  its compiled engine in ``core.engine``;
+- :mod:`leadscrew_sim.analysis`: identification, excitation profiles, figures,
+  linear design, stability maps (core and scipy, never io, ros or cli);
 - :mod:`leadscrew_sim.io`: bytes and schemas (CDR, MCAP), no rclpy;
+- :mod:`leadscrew_sim.offline`: the run library of the offline verbs;
 - :mod:`leadscrew_sim.ros`: the ROS 2 node;
 - :mod:`leadscrew_sim.cli`: the offline command line.
 
