@@ -14,13 +14,15 @@ caches every function a case uses, and the workers then only read the
 cache. Each worker warms its own kernel once, in its initializer, before its
 first batch. Dask workers warm theirs on their first batch (once per
 process); the client warms the cache before it submits, which covers workers
-that share the client's NUMBA_CACHE_DIR.
+that share the client's NUMBA_CACHE_DIR. Warming also sets glibc's malloc
+to keep freed memory (:func:`keep_freed_memory`), in every process.
 
 Ctrl-C (KeyboardInterrupt) stops the run: the finished rows are kept and the
 result says it is incomplete. An unreachable Dask scheduler fails within
 SCHEDULER_TIMEOUT seconds.
 """
 import concurrent.futures as cf
+import ctypes
 import math
 import multiprocessing
 import os
@@ -28,17 +30,35 @@ import sys
 
 import numpy as np
 
-__all__ = ['identical', 'run_batch', 'run_cases', 'SCHEDULER_TIMEOUT', 'warm']
+__all__ = ['identical', 'keep_freed_memory', 'run_batch', 'run_cases', 'SCHEDULER_TIMEOUT', 'warm']
 
 SCHEDULER_TIMEOUT = 8.0     #: seconds to reach a Dask scheduler (the error comes within 10 s)
 BATCHES_PER_WORKER = 4      #: batches per worker (load balance against per-batch cost)
 _WARM = []                  # set once this process has warmed its kernel
 
 
+def keep_freed_memory():
+    """
+    Have glibc's malloc keep freed blocks up to 32 MiB in its heap (once per process).
+
+    A run's record array is mapped afresh and touched page by page when glibc
+    returns freed memory eagerly; Dask's nanny starts its workers with
+    MALLOC_TRIM_THRESHOLD_=65536, which made the same runs 2.6 times slower
+    there. The settings of leadscrew_sim.offline.options.keep_freed_memory;
+    elsewhere than glibc nothing changes. Returns True when they were taken.
+    """
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+        return bool(mallopt(-3, 32 << 20) and mallopt(-1, 512 << 20))   # MMAP, TRIM
+    except (OSError, AttributeError):
+        return False
+
+
 def warm():
     """Compile or load the kernel and the analysis once in this process (a tiny case)."""
     if _WARM:
         return
+    keep_freed_memory()
     from ...core.params import ScrewParams
     from .grid import run_case
     run_case(ScrewParams(), {}, 1e-3, 'velocity', 'both', 0.01)
