@@ -118,7 +118,8 @@ class Problem:
     @property
     def jac_steps(self):
         """Return the relative steps of the intervals' Jacobian (wider with restarts)."""
-        return ident.JAC_STEPS if self.anchoring is None else fit_steps.JAC_STEPS
+        return (ident.INTERVAL_JAC_STEPS if self.anchoring is None
+                else fit_steps.RESTART_JAC_STEPS)
 
     def restart(self):
         """

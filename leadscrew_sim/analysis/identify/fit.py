@@ -258,7 +258,7 @@ class _Counted:
 
 #: Relative steps of the Jacobian of the intervals, and the factor by which the growing
 #: horizons' stages widen the optimiser's steps.
-JAC_STEPS, COARSE = (1e-5, 1e-3), 10.0
+INTERVAL_JAC_STEPS, COARSE = (1e-5, 1e-3), 10.0
 
 
 class _Anchored:
@@ -286,7 +286,7 @@ ANCHOR = 1.0
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
         hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, rescan=False, profile=False,
-        jac_steps=JAC_STEPS):
+        jac_steps=INTERVAL_JAC_STEPS):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 

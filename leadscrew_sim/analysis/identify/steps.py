@@ -286,7 +286,7 @@ def anchor(model, rest, offset, kick=(0.0, 0.0)):
 #: Relative steps of the intervals' Jacobian of a fit restarted at rests: below 1e-3 its
 #: residuals jump (a breakaway one step earlier, on another crest of the ringing); the
 #: slides' residuals stay linear in the friction to a few per cent.
-JAC_STEPS = (1e-3, 1e-2)
+RESTART_JAC_STEPS = (1e-3, 1e-2)
 
 #: Standard errors of a rest's motor state by which :meth:`Anchoring.predictable` moves it:
 #: the recorded state is within 3 of them but once in 370.
