@@ -6,7 +6,9 @@ import numpy as np
 from ..offline.options import NS, open_recording, Progress, RunError
 from ..offline.replay import Resim
 from ..io import cdr as C, messages as M
-from ..io.run_file import PARAMS_RECORD
+from ..io.run_file import PARAMS_RECORD, params_from_record
+from ..offline.run_events import EventLog, recorded_events
+from .event_lines import print_events
 
 HELP = 'one screen about a recording'
 
@@ -43,10 +45,14 @@ def run(args):
                 timing[key] = data[key]
     print('timing: ' + (', '.join(f'{k} {v}' for k, v in timing.items()) if timing else
                         'no overrun/late-tick counts in the metadata'))
-    if rec.role_topic('sim/thread_state'):
+    recorded = rec.role_topic('sim/thread_state')
+    if recorded:
         _print_recorded(rec)
-    elif not args.no_resim:
-        _print_resim(args, rec)
+    if args.no_resim:
+        params, _missing = params_from_record(meta)
+        print_events(recorded_events(rec, meta, params))
+    else:
+        _print_resim(args, rec, energy=not recorded)
     if figures:
         _print_figures(args, rec, meta, figures)
     return 0
@@ -174,15 +180,18 @@ def _print_recorded(rec):
         _print_energy('recorded in sim/thread_state', *_shares(sticks, contacts), last)
 
 
-def _print_resim(args, rec):
-    """Print the stick and contact fractions and the energy balance [J] of a re-simulation."""
+def _print_resim(args, rec, energy=True):
+    """Print the events of a re-simulation; with ``energy`` its stick, contact and energy too."""
     sim = Resim(rec)
     model = sim.model()
+    log = EventLog(sim.params, sim.dt_ns)
     sticks, contacts = [], []
-    for _seg, cols in sim.blocks(model, progress=Progress(sim.n_steps, 'info', args.quiet)):
-        sticks += cols['stick_a'].tolist()
-        contacts += cols['contact'].tolist()
-    if not contacts:
-        return
-    _print_energy('re-simulated from the recorded parameters and commands',
-                  *_shares(sticks, contacts), model.energy())
+    for _seg, cols in sim.blocks(model, progress=Progress(sim.n_steps, 'info', args.quiet),
+                                 log=log):
+        if energy:
+            sticks += cols['stick_a'].tolist()
+            contacts += cols['contact'].tolist()
+    if contacts:
+        _print_energy('re-simulated from the recorded parameters and commands',
+                      *_shares(sticks, contacts), model.energy())
+    print_events(log.events())

@@ -12,9 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from .args import add_compression_argument
+from .event_lines import print_events
 from ..offline.options import (compression_of, gc_paused, open_recording, parse_sets,
                                Progress, RunError)
 from ..offline.replay import Resim
+from ..offline.run_events import EventLog
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
 from ..io.run_file import CLI_RECORD, PARAMS_RECORD, RunWriter
@@ -192,11 +194,13 @@ def _run(args):
     try:
         w.write_description(sim.t0)
         progress = Progress(sim.n_steps, 'resim', args.quiet)
-        new, _model = sim.run(w, progress=progress)
+        log = EventLog(sim.params, sim.dt_ns)
+        new, _model = sim.run(w, progress=progress, log=log)
         compared = compare(sim, new)        # while the writer thread ends the file
     finally:
         w.close()
     _report(args, sim, out, new, compared)
+    print_events(log.events())
     return 0
 
 

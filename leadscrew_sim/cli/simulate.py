@@ -7,6 +7,7 @@ its options and prints what it wrote.
 import sys
 
 from .args import add_compression_argument, PROG
+from .event_lines import print_events
 from ..offline.options import DEFAULT_PRESET
 from ..offline.simulate import simulate
 
@@ -66,6 +67,7 @@ def run(args):
           f'time), {done.size} B')
     print(f'nut position {stats["x_min"]:.6g} .. {stats["x_max"]:.6g} m, final '
           f'{stats["x_end"]:.6g} m; max |torque| {stats["tq_max"]:.4g} N m')
+    print_events(done.events)
     return 0
 
 

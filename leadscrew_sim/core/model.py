@@ -191,7 +191,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
             self._fail(f'non-finite state at t={self.state[L.S_T]:.6f} s '
                        f'(torque {torque} N m); integration stopped')
 
-    def run(self, torques, external_forces=None, *, commands=None):
+    def run(self, torques, external_forces=None, *, commands=None, drive_values=False):
         """
         Run one step of ``dt`` per torque (or per drive command) in a single compiled call.
 
@@ -208,6 +208,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
             a ``drive_modes.MODE_*`` code); NaN in position, velocity or effort means
             not commanded (an unused field, or a zero feed-forward). The last
             row stays the held command.
+        drive_values : bool
+            Also return the drive's values (as with ``commands``) of a torque run.
 
         Returns
         -------
@@ -263,8 +265,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
         rec = np.empty((n, L.REC_STATE + L.NO))
         done = K.run_series(self._P, self.state, self.out, tq_q, fe, cmds,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
-        res = series_result(rec[:done], hs, commands is not None, float(self._P[L.P_CL]),
-                            float(self._P[L.P_SL]))
+        res = series_result(rec[:done], hs, commands is not None or drive_values,
+                            float(self._P[L.P_CL]), float(self._P[L.P_SL]))
         stored = stored_energy(self.params, self._P, rec[:done].T,
                                rec[:done, L.REC_STATE + L.O_JAM])
         res.update({name: e - e0 for name, e, e0 in

@@ -190,7 +190,9 @@ class Resim:
 
         """
         if self._inputs is None:
-            self._inputs = CommandPass(self).build()
+            command_pass = CommandPass(self)
+            self._inputs = command_pass.build()
+            self.stale = command_pass.stale     # per step: the command timed out
         return self._inputs
 
     # ------------------------------------------------------------- the model
@@ -200,7 +202,8 @@ class Resim:
         params = ScrewParams.from_dict(overrides, base=self.params) if overrides else self.params
         return LeadScrewModel(params, dt=self.dt_ns / NS)
 
-    def blocks(self, model, line=None, overrides=None, progress=None, block_ticks=None):
+    def blocks(self, model, line=None, overrides=None, progress=None, block_ticks=None,
+               log=None):
         """
         Run the segments through ``model``; yield (segment, columns of ``model.run``).
 
@@ -220,13 +223,20 @@ class Resim:
             Told the steps done after each segment.
         block_ticks : int, optional
             The longest part [steps] (default: whole segments).
+        log : EventLog, optional
+            Gets the columns of every part, the recorded parameter updates and
+            the steps whose command timed out (:mod:`.run_events`).
 
         """
         segments, commands, forces = self.inputs()
         keep = set(self.overrides) | set(overrides or ())
+        if log is not None:
+            log.stale = self.stale
         for seg in segments:
             for kind, data in seg.events:
                 self._apply_model(kind, data, model, line, keep)
+            if log is not None:
+                log.segment(seg, model.params)
             if seg.k1 <= seg.k0:
                 continue
             rows = commands[seg.k0:seg.k1]
@@ -238,6 +248,8 @@ class Resim:
                 a, b = part.k0 - seg.k0, part.k1 - seg.k0
                 with simulation_faults(f' in steps {part.k0}..{part.k1 - 1}'):
                     cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b])
+                if log is not None:
+                    log.add(part.k0, cols)
                 yield part, cols
                 if progress is not None:
                     progress.update(part.k1)
@@ -267,7 +279,7 @@ class Resim:
             return {}
         return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
 
-    def run(self, writer=None, progress=None):
+    def run(self, writer=None, progress=None, log=None):
         """
         Re-simulate every step; optionally write a new recording in the node's layout.
 
@@ -277,6 +289,8 @@ class Resim:
             Gets the recorded commands and the new states, in the node's order.
         progress : Progress, optional
             Told the steps done after each segment.
+        log : EventLog, optional
+            Collects the run's events (:meth:`blocks`).
 
         Returns
         -------
@@ -289,7 +303,8 @@ class Resim:
         line = self.line = StateDelivery(model.params)
         enc = M.StateEncoder(self.prefix, self.params.anti_backlash)
         new = NewStates(self.n_steps, len(M.TRUTH_VALUES))
-        for seg, cols in self.blocks(model, line, progress=progress, block_ticks=BLOCK_TICKS):
+        for seg, cols in self.blocks(model, line, progress=progress, block_ticks=BLOCK_TICKS,
+                                     log=log):
             pieces = self._pieces(seg, writer) if writer is not None else []
             if self.decimation == 1 and not (line.delay or line.drop_rate or line.pending()):
                 _block_states(self, seg, cols, pieces, enc, writer, new)

@@ -50,6 +50,7 @@ class CommandPass:
         n = sim.n_steps
         self.commands = np.full((n, 4), np.nan)
         self.forces = np.zeros(n)
+        self.stale = np.zeros(n, dtype=bool)    # the command timed out at the step
         self.current = None         # the command of the last step, None: the model's own
         self.k = 0                  # the next step to fill
 
@@ -116,6 +117,7 @@ class CommandPass:
         if self.current is not None:
             self.commands[k] = self.current
         self.forces[k] = self.hold.force
+        self.stale[k] = self.hold.stale
         self.k = k + 1
 
     def _float_run(self, events, e0, e1, k):

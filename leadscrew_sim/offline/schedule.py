@@ -6,7 +6,9 @@ a YAML scalar); ``#`` starts a comment and a first line that is not a time
 is a header. A change at time t acts from the first step that starts at or
 after t, as a ``ros2 param set`` between two ticks of the node does, and it
 is recorded as a parameter update with that step's log time, so ``resim``
-applies it at the same step.
+applies it at the same step. ``time,clear_fault,true`` clears a latched
+drive fault before that step, as the node's ``~/clear_fault`` does (nothing
+while ``fault.drive_fault`` is true), and is recorded as the node records it.
 """
 import math
 
@@ -14,10 +16,15 @@ from .options import parse_scalar, RunError
 from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 
+#: The key of a schedule's changes that clears a latched drive fault (``~/clear_fault``).
+CLEAR_FAULT = 'clear_fault'
+
 
 def read_schedule(path, params, dt_ns):
     """
     Return [(step, {field name: value})] of a schedule file, in step order.
+
+    A drive fault clearing is the key :data:`CLEAR_FAULT` (value True).
 
     Every change is validated on top of the ones before it, so a bad line is
     reported with its number before anything runs.
@@ -62,6 +69,12 @@ def read_schedule(path, params, dt_ns):
             if t < last_t:
                 raise RunError(f'{where}: time {t} s goes backwards (previous {last_t} s)')
             last_t = t
+            step = max(0, math.ceil(t * 1e9 / dt_ns - 1e-9))
+            if cells[1] in (CLEAR_FAULT, '~/clear_fault'):
+                if parse_scalar(cells[2]) is not True:
+                    raise RunError(f'{where}: {cells[1]} takes the value true')
+                steps.setdefault(step, {})[CLEAR_FAULT] = True
+                continue
             name = field_name(cells[1])
             if name not in names:
                 raise RunError(f"{where}: unknown parameter '{cells[1]}'")
@@ -72,6 +85,5 @@ def read_schedule(path, params, dt_ns):
                 params = ScrewParams.from_dict({name: value}, base=params)
             except ParameterError as exc:
                 raise RunError(f'{where}: {exc}') from None
-            step = max(0, math.ceil(t * 1e9 / dt_ns - 1e-9))
             steps.setdefault(step, {})[name] = getattr(params, name)
     return sorted(steps.items())

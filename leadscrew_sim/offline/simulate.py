@@ -20,13 +20,16 @@ import numpy as np
 from .options import (compression_of, gc_paused, load_params, NS, parse_sets, Progress,
                       RunError, simulation_faults)
 from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
-from .schedule import read_schedule
+from .run_events import EventLog
+from .schedule import CLEAR_FAULT, read_schedule
 from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
 from ..core.delivery import StateDelivery
+from ..core.drive_modes import FAULT_NONE
 from ..core.fields import public_name
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M
-from ..io.run_file import CLI_RECORD, PARAMS_RECORD, parameters_record, RunWriter, UPDATE_RECORD
+from ..io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, parameters_record,
+                           RunWriter, UPDATE_RECORD)
 from ..io.record_fill import Stamps
 from ..io.tick_writer import Events, Stream, write_block
 
@@ -42,7 +45,8 @@ class SimulatedRun:
 
     ``path``: the MCAP file; ``size`` its bytes; ``rate`` [Hz], ``steps`` and
     ``substeps`` (per step) of the run; ``simulated`` and ``wall`` its
-    simulated and wall-clock time [s]; ``stats`` those of :func:`simulate_loop`.
+    simulated and wall-clock time [s]; ``stats`` those of :func:`simulate_loop`;
+    ``events`` the run's events (:func:`leadscrew_sim.analysis.events.run_events`).
     """
 
     path: str
@@ -53,6 +57,7 @@ class SimulatedRun:
     simulated: float
     wall: float
     stats: dict
+    events: list = dataclasses.field(default_factory=list)
 
 
 def simulate(args, warn):
@@ -109,8 +114,11 @@ def _simulate(args, warn):
     if late:
         warn(f'--faults {args.faults}: {len(late)} change(s) at or after the end of the run '
              f'({args.duration:g} s) have no effect')
+    log = EventLog(params, dt_ns)
     if schedule and schedule[0][0] == 0:   # changes at t = 0 are the run's parameters
-        params = ScrewParams.from_dict(schedule.pop(0)[1], base=params)
+        first = {n: v for n, v in schedule.pop(0)[1].items() if n != CLEAR_FAULT}
+        log.change(0, first)                # nothing latched to clear at the start
+        params = ScrewParams.from_dict(first, base=params)
     model = LeadScrewModel(params, dt=dt_ns / NS)
     if drive is not None:
         torque_fn = DriveInput(drive[0], drive[1], model, prefix)
@@ -128,15 +136,15 @@ def _simulate(args, warn):
         with simulation_faults():
             stats = simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w,
                                   Progress(n_steps, 'simulate', args.quiet), args.clock,
-                                  schedule)
+                                  schedule, log)
     finally:
         size = w.close()
     return SimulatedRun(out, size, rate, n_steps, model.nsub, n_steps * dt_ns / NS,
-                        time.perf_counter() - t_wall, stats)
+                        time.perf_counter() - t_wall, stats, log.events())
 
 
 def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock=False,
-                  schedule=()):
+                  schedule=(), log=None):
     """
     Advance ``n_steps`` steps of ``dt_ns`` [ns], recording command and states per tick.
 
@@ -147,7 +155,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
     per tick. The commands pass through the node's :class:`CommandHold` (lost
     commands, command delay) and the sensor states through its
     :class:`StateDelivery` (delay, lost states). Returns the statistics x_min,
-    x_max, x_end [m] and tq_max [N m].
+    x_max, x_end [m] and tq_max [N m]. An :class:`EventLog` ``log`` gets the
+    scheduled changes and the columns of every block (with the drive's).
     """
     dt = dt_ns / NS
     needs_state = getattr(torque_fn, 'needs_state', False)
@@ -165,6 +174,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
     for k0, k1 in zip(cuts, cuts[1:] + [n_steps]):
         if k0 in changes_at:
             _apply_changes(model, hold, line, changes_at[k0], w, k0 * dt_ns)
+            if log is not None:
+                log.change(k0, {n: v for n, v in changes_at[k0].items() if n != CLEAR_FAULT})
         ks = range(k0, k1)
         forces, changes = _forces(force_fn, ks, dt, force)
         force = float(forces[-1])
@@ -175,6 +186,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
                                                vm_scale)
         else:
             torques, cols = _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces)
+        if log is not None:
+            log.add(k0, cols)
         x = float(cols['nut_position'][-1])
         vm = vm_scale * model.output().motor_velocity
         _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line)
@@ -200,14 +213,26 @@ def _forces(force_fn, ks, dt, before):
 
 
 def _apply_changes(model, hold, line, changes, w, log_time_ns):
-    """Apply scheduled parameter changes before a step and record them as the node does."""
-    params = ScrewParams.from_dict(changes, base=model.params)
-    model.set_params(params)
-    hold.set_faults(params)
-    line.set_faults(params)
-    record = {public_name(k): str(getattr(params, k)) for k in changes}
-    record.update(log_time_ns=str(log_time_ns), messages_at_log_time='0')
-    w.rec.add_metadata(UPDATE_RECORD, record)
+    """
+    Apply scheduled parameter changes before a step and record them as the node does.
+
+    Then a scheduled :data:`~.schedule.CLEAR_FAULT` clears a latched drive fault
+    (unless ``fault.drive_fault`` is true, as the node's ``~/clear_fault``), recorded
+    as the node records it.
+    """
+    changes = dict(changes)
+    clear = changes.pop(CLEAR_FAULT, False)
+    if changes:
+        params = ScrewParams.from_dict(changes, base=model.params)
+        model.set_params(params)
+        hold.set_faults(params)
+        line.set_faults(params)
+        record = {public_name(k): str(getattr(params, k)) for k in changes}
+        record.update(log_time_ns=str(log_time_ns), messages_at_log_time='0')
+        w.rec.add_metadata(UPDATE_RECORD, record)
+    if clear and not model.params.fault_drive_fault and model.clear_fault() != FAULT_NONE:
+        w.rec.add_metadata(CLEAR_FAULT_RECORD, {'log_time_ns': str(log_time_ns),
+                                                'messages_at_log_time': '0'})
 
 
 def _check_finite(torques, ks, dt):
@@ -247,7 +272,7 @@ def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
         applied = _through_hold(hold, torques, ks, dt_ns, model.held_torque())
     else:
         _count(hold, torques, ks, dt_ns)
-    return torques, model.run(applied, forces)
+    return torques, model.run(applied, forces, drive_values=True)
 
 
 def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scale):
@@ -256,6 +281,9 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
     n = len(ks)
     names = M.SENSOR_COLUMNS[:4] + M.TRUTH_VALUES + M.ANALYSIS_COLUMNS
     cols = {name: np.empty(n) for name in names}
+    cols['fault'] = np.zeros(n, dtype=np.int8)
+    switches = [np.zeros(n, dtype=bool) for _name in ('limit_min', 'limit_max', 'home')]
+    cols.update(zip(('limit_min', 'limit_max', 'home'), switches))
     torques = []
     lossy = hold.delay or hold.drop_rate
     applied = model.held_torque()
@@ -272,6 +300,9 @@ def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scal
         for name, v in zip(names, model.joint_values()[:4] + model.truth_values()
                            + model.analysis_values()):
             cols[name][i] = v
+        cols['fault'][i] = model.drive_fault()
+        for flags, on in zip(switches, model.switches()):
+            flags[i] = on == 1.0
         x, vm = cols['nut_position'][i], vm_scale * cols['motor_velocity'][i]
     return torques, cols
 
