@@ -25,7 +25,7 @@ def add_arguments(p):
 
 
 def _recorded(rec):
-    """Return (times [s], the COLUMNS) from sim/joint_states and sim/thread_state, or None."""
+    """Return (stamps [ns], the COLUMNS) from sim/joint_states and sim/thread_state, or None."""
     truth_topic, thread_topic = rec.role_topic('sim/joint_states'), rec.role_topic(
         'sim/thread_state')
     if not (truth_topic and thread_topic):
@@ -46,7 +46,7 @@ def _recorded(rec):
     names = ('screw_angle', 'nut_position', 'nut_velocity', 'motor_torque', 'normal_leading',
              'normal_trailing', 'friction_force', 'contact', 'stuck')
     col = {name: np.array([r[i] for r in rows], dtype=float) for i, name in enumerate(names)}
-    return np.array(stamps) / NS, col
+    return np.array(stamps, dtype=np.int64), col
 
 
 def run(args):
@@ -55,7 +55,10 @@ def run(args):
     sim = Resim(rec)
     recorded = _recorded(rec)
     if recorded is not None:
-        t, col = recorded
+        stamps, col = recorded
+        # time from the recording's start: its t0, else one step before its first state
+        start = sim.t0 if 't0_ns' in sim.meta else int(stamps[0]) - sim.dt_ns
+        t = (stamps - start) / NS
         source = 'recorded'
     else:
         model = sim.model()
@@ -65,7 +68,7 @@ def run(args):
             raise RunError(f'{args.file}: no steps to plot')
         col = {name: np.concatenate([p[name] for p in parts]).astype(float)
                for name in COLUMNS}
-        t = (sim.t0 + sim.dt_ns * np.arange(1, len(col['nut_position']) + 1)) / NS
+        t = sim.dt_ns * np.arange(1, len(col['nut_position']) + 1) / NS   # from the start
         source = 're-simulated from the recorded parameters and commands'
     import matplotlib
     matplotlib.use('Agg')
