@@ -137,29 +137,8 @@ class Exciter:
         executor.add_node(node)
         self.out(f'excite: {self.profile.describe()}; {self.profile.duration:.3f} s at '
                  f'{self.rate:g} Hz on {name}')
-        end = time.monotonic() + wait_timeout
-        while pub.get_subscription_count() == 0:
-            if self.stop:
-                return 130
-            if time.monotonic() > end:
-                raise ExciteError(f'no subscriber on {name} after {wait_timeout:g} s (is '
-                                  'the node running, in this ROS_DOMAIN_ID and namespace?)')
-            executor.spin_once(timeout_sec=0.01)
-        # A node that subscribed may not run its loop yet (start-up): commands sent
-        # then overflow the subscription's history. Its first nut_position shows the
-        # loop runs; an axis without that topic gets the settling pause only.
-        settle_end = time.monotonic() + SETTLE_S
-        while time.monotonic() < settle_end or (
-                latest['x'] is None and node.count_publishers(sub.topic_name) > 0
-                and time.monotonic() < end):
-            if self.stop:
-                return 130
-            executor.spin_once(timeout_sec=0.01)
-        if self.profile.kind != 'torque':
-            node.destroy_subscription(sub)         # only the breakaway ramps follow the nut
-        if self.profile.kind == 'torque' and latest['x'] is None:
-            self.out('excite: no nut_position received: the ramps run as planned, without '
-                     'the stop at abort_travel')
+        if self._wait_for_axis(node, executor, pub, sub, latest, name, wait_timeout):
+            return 130
         ctl = self.profile.controller()
         state = {'k': -1, 'segment': -1, 'done': False}
         t0 = time.monotonic()
@@ -202,3 +181,30 @@ class Exciter:
                      f'{ACK_TIMEOUT_S:g} s')
         self.out(f'excite: done, {self.sent} commands in {time.monotonic() - t0:.3f} s')
         return 0
+
+    def _wait_for_axis(self, node, executor, pub, sub, latest, name, wait_timeout):
+        """Wait for a subscriber and the axis's first nut_position; return True if stopped."""
+        end = time.monotonic() + wait_timeout
+        while pub.get_subscription_count() == 0:
+            if self.stop:
+                return True
+            if time.monotonic() > end:
+                raise ExciteError(f'no subscriber on {name} after {wait_timeout:g} s (is '
+                                  'the node running, in this ROS_DOMAIN_ID and namespace?)')
+            executor.spin_once(timeout_sec=0.01)
+        # A node that subscribed may not run its loop yet (start-up): commands sent
+        # then overflow the subscription's history. Its first nut_position shows the
+        # loop runs; an axis without that topic gets the settling pause only.
+        settle_end = time.monotonic() + SETTLE_S
+        while time.monotonic() < settle_end or (
+                latest['x'] is None and node.count_publishers(sub.topic_name) > 0
+                and time.monotonic() < end):
+            if self.stop:
+                return True
+            executor.spin_once(timeout_sec=0.01)
+        if self.profile.kind != 'torque':
+            node.destroy_subscription(sub)         # only the breakaway ramps follow the nut
+        if self.profile.kind == 'torque' and latest['x'] is None:
+            self.out('excite: no nut_position received: the ramps run as planned, without '
+                     'the stop at abort_travel')
+        return False
