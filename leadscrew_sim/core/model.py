@@ -242,24 +242,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
 
         """
         hs = self.params.hand_sign
-        if commands is None:
-            tq = np.ascontiguousarray(torques, dtype=float)
-            fe = (np.zeros_like(tq) if external_forces is None
-                  else np.ascontiguousarray(external_forces, dtype=float))
-            if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
-                raise ValueError('torques and external_forces must be finite and of equal '
-                                 'length')
-            cmds, tq_q = _NO_COMMANDS, (tq if hs == 1 else -tq)
-        else:
-            if torques is not None:
-                raise ValueError('give torques or commands, not both (a torque mode command '
-                                 'row carries its torque as effort)')
-            cmds = D.command_rows(commands, self.params.hand_sign)   # validated, q sense
-            fe = (np.zeros(len(cmds)) if external_forces is None
-                  else np.ascontiguousarray(external_forces, dtype=float))
-            if fe.shape != (len(cmds),) or not np.isfinite(fe).all():
-                raise ValueError('external_forces must be finite and as long as commands')
-            tq_q = fe                             # unused with command rows: only its length
+        tq_q, fe, cmds = self._series_inputs(torques, external_forces, commands)
         n = len(fe)
         self._check_fault()
         rec = np.empty((n, L.REC_STATE + L.NO))
@@ -274,6 +257,27 @@ class LeadScrewModel(DriveControl, ReportedValues):
         if done < n:
             self._fail(f'non-finite state at step {done}; integration stopped')
         return res
+
+    def _series_inputs(self, torques, external_forces, commands):
+        """Return :meth:`run`'s validated inputs: torques (q sense), forces, command rows."""
+        hs = self.params.hand_sign
+        if commands is None:
+            tq = np.ascontiguousarray(torques, dtype=float)
+            fe = (np.zeros_like(tq) if external_forces is None
+                  else np.ascontiguousarray(external_forces, dtype=float))
+            if tq.shape != fe.shape or not (np.isfinite(tq).all() and np.isfinite(fe).all()):
+                raise ValueError('torques and external_forces must be finite and of equal '
+                                 'length')
+            return (tq if hs == 1 else -tq), fe, _NO_COMMANDS
+        if torques is not None:
+            raise ValueError('give torques or commands, not both (a torque mode command '
+                             'row carries its torque as effort)')
+        cmds = D.command_rows(commands, hs)   # validated, q sense
+        fe = (np.zeros(len(cmds)) if external_forces is None
+              else np.ascontiguousarray(external_forces, dtype=float))
+        if fe.shape != (len(cmds),) or not np.isfinite(fe).all():
+            raise ValueError('external_forces must be finite and as long as commands')
+        return fe, fe, cmds                   # the torques are unused with command rows
 
     def place_at_rest(self, theta, motor_offset, motor_rate):
         """
