@@ -3,7 +3,7 @@
 
 ``leadscrew_sim excite NAME`` publishes the profile's commands on the node's
 command topic (or a real axis' driver listening on the same topics) at
-``--rate`` Hz; record them with the node's recorder or ``ros2 bag record``.
+``--command-rate`` Hz; record them with the node's recorder or ``ros2 bag record``.
 ``--list`` and ``--dry-run`` need no ROS. The profile's defaults come from the
 axis parameters (``--preset``, ``--params``, ``--set``, as ``simulate``), its
 options from ``--opt NAME=VALUE``. The publishing node lives in
@@ -14,6 +14,7 @@ import csv
 import importlib
 import math
 
+from .args import add_deprecated_alias
 from ..offline.options import (check_finite, DEFAULT_PRESET, load_params, parse_options,
                                parse_sets, RunError)
 from ..analysis.excitation.profiles import make_profile, PROFILES
@@ -30,8 +31,11 @@ def add_arguments(p):
     p.add_argument('--preset', help=f'axis preset for the defaults (default {DEFAULT_PRESET})')
     p.add_argument('--params', help='ROS 2 parameter file of the axis')
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
-                   help='override an axis parameter (repeatable)')
-    p.add_argument('--rate', type=float, default=100.0, help='commands per second [Hz]')
+                   help='override an axis parameter (repeatable; YAML scalar in the '
+                   'parameter\'s unit)')
+    p.add_argument('--command-rate', dest='rate', type=float, default=100.0, metavar='HZ',
+                   help='commands per second [Hz] (default 100)')
+    add_deprecated_alias(p, '--rate', '--command-rate', 'rate', float)
     p.add_argument('--namespace', default='', help='namespace of the axis\' topics')
     p.add_argument('--joint-commands', action='store_true',
                    help='publish sensor_msgs/JointState on joint_commands instead of Float64')
@@ -42,8 +46,10 @@ def add_arguments(p):
                    help='print the profiles with their options and durations')
     p.add_argument('--dry-run', nargs='?', type=int, const=20, metavar='N',
                    help='print the first N commands (default 20) and exit')
-    p.add_argument('--log', metavar='FILE.csv', help='write every command sent as '
-                   'index,time,value [-, s, SI]')
+    p.add_argument('-o', '--output', '--log', dest='log', metavar='FILE.csv',
+                   help='write every command sent as index,time,value [-, s, SI]')
+    p.add_argument('-q', '--quiet', action='store_true',
+                   help='print no progress while publishing (warnings and errors only)')
 
 
 def run(args):
@@ -61,9 +67,9 @@ def run(args):
     if not args.name:
         raise RunError(f'give a profile NAME ({", ".join(PROFILES)}) or --list')
     profile = make_profile(args.name, params, **options)
-    check_finite('--rate', args.rate)
+    check_finite('--command-rate', args.rate)
     if not 0.1 <= args.rate <= 10000.0:
-        raise RunError(f'--rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
+        raise RunError(f'--command-rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
     if not (math.isfinite(args.wait_timeout) and args.wait_timeout >= 0.0):
         raise RunError(f'--wait-timeout {args.wait_timeout!r} s must be >= 0')
     if args.prefix and not args.joint_commands:
@@ -94,13 +100,13 @@ def _publish(profile, args):
         try:
             log_file = open(args.log, 'w', newline='')
         except OSError as exc:
-            raise RunError(f'--log {args.log}: {exc.strerror or exc}') from None
+            raise RunError(f'--output {args.log}: {exc.strerror or exc}') from None
         writer = csv.writer(log_file)
         writer.writerow(['index', 'time', 'value'])
     try:
         ex = exciter_mod.Exciter(
             profile, args.rate, namespace=args.namespace, joint_commands=args.joint_commands,
-            prefix=args.prefix, out=lambda line: print(line, flush=True),
+            prefix=args.prefix, out=lambda line: _out(args, line),
             log=None if writer is None else (lambda k, t, v: writer.writerow([k, repr(t),
                                                                              repr(v)])))
         try:
@@ -110,3 +116,9 @@ def _publish(profile, args):
     finally:
         if log_file is not None:
             log_file.close()
+
+
+def _out(args, line):
+    """Print a progress line of the exciter; with ``--quiet`` only its warnings."""
+    if not args.quiet or 'warning' in line:
+        print(line, flush=True)

@@ -5,6 +5,7 @@ The fit is :func:`leadscrew_sim.offline.identify.fit_recording`; this verb
 parses its options, prints the report (:mod:`.identify_report`) and has the
 report, the parameter file and the plot written.
 """
+from .args import add_deprecated_alias
 from .identify_report import report
 from ..analysis.identify import fit as ident
 from ..offline.identify import fit_recording
@@ -23,9 +24,10 @@ def add_arguments(p):
                    'the recording names, else tr12x3)')
     p.add_argument('--params', help='starting and fixed values: a ROS 2 parameter file')
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
-                   help='a starting or fixed value (repeatable)')
-    p.add_argument('--output-params', metavar='FILE.yaml', help='write the fitted set as a '
-                   'parameter file (simulate --params, the node)')
+                   help='a starting or fixed value (repeatable; YAML scalar in the '
+                   'parameter\'s unit)')
+    p.add_argument('-o', '--output-params', metavar='FILE.yaml', help='write the fitted set '
+                   'as a parameter file (simulate --params, the node)')
     p.add_argument('--report', metavar='FILE', help='also write the report (it is printed)')
     p.add_argument('--plot', metavar='FILE.png', help='recorded, initial and fitted signals')
     p.add_argument('--state-topic', help='JointState topic of the measured states '
@@ -36,9 +38,11 @@ def add_arguments(p):
                    'nut velocity [m/s] or nut position [m]')
     p.add_argument('--screw-joint', help='joint name of the screw (motor) in the states')
     p.add_argument('--nut-joint', help='joint name of the nut in the states')
-    p.add_argument('--rate', type=float, help='step rate [Hz] of a foreign recording '
-                   '(default 1000)')
-    p.add_argument('--max-nfev', type=int, help='most re-simulations per fit stage')
+    p.add_argument('--step-rate', dest='rate', type=float, metavar='HZ',
+                   help='step rate [Hz] of a foreign recording (default 1000)')
+    add_deprecated_alias(p, '--rate', '--step-rate', 'rate', float)
+    p.add_argument('--max-nfev', type=int, metavar='N',
+                   help='most re-simulations per fit stage [-]')
     p.add_argument('--restarts', choices=('auto', 'on', 'off'), default='auto',
                    help='restart the re-simulation from the recorded state at each rest of '
                    'a torque-mode recording and compare only the steps that state '

@@ -12,10 +12,15 @@ from . import excite, identify, info, play, plot, recover, resim, simulate, stab
 from .args import Parser, PROG, UsageError
 from ..offline.options import RunError
 from ..core.params import ParameterError
+from ..core.warmup import kernel_ready
 from ..io.mcap_reader import RecordingError
 from ..io.run_file import RunFileError
 
+#: The verbs that run the compiled kernel: a first run says that it compiles it.
+KERNEL_VERBS = ('simulate', 'resim', 'identify', 'stability')
+
 #: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
+#: ``summary`` is an alias of ``info``.
 VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
          ('play', play), ('plot', plot), ('excite', excite), ('identify', identify),
          ('stability', stability), ('recover', recover))
@@ -24,11 +29,13 @@ VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', re
 def build_parser():
     """Return the argument parser of all verbs."""
     parser = Parser(prog=PROG, description='Offline tools for the leadscrew_sim lead screw '
-                    'axis: simulate, info, resim, play, plot, excite, identify.')
+                    'axis: simulate, info, resim, play, plot, excite, identify, stability, '
+                    'recover.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     for name, verb in VERBS:
-        p = sub.add_parser(name, help=verb.HELP)
+        text = 'alias of info' if name == 'summary' else verb.HELP
+        p = sub.add_parser(name, help=text, description=text)
         verb.add_arguments(p)
         p.set_defaults(func=verb.run)
     return parser
@@ -39,6 +46,8 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(argv)
+        if args.command in KERNEL_VERBS and not getattr(args, 'quiet', False):
+            kernel_ready(lambda text: print(f'{PROG}: {text}', file=sys.stderr), always=False)
         return args.func(args)
     except UsageError as exc:
         print(f'{PROG}: error: {exc} (see {PROG} --help)', file=sys.stderr)

@@ -7,7 +7,7 @@ import math
 import sys
 import time
 
-from .args import PROG
+from .args import add_deprecated_alias, PROG
 from ..offline.options import NS, open_recording, RunError
 from ..core import yamlio
 from ..io import messages as M
@@ -22,16 +22,22 @@ PLAY_ACK_TIMEOUT_S = 5.0
 
 def add_arguments(p):
     """Add the options of ``play`` to parser ``p``."""
-    p.add_argument('file')
-    p.add_argument('--rate', type=float, default=1.0, help='speed factor')
+    p.add_argument('file', help='the recording (any ros2-profile MCAP)')
+    p.add_argument('--speed-factor', dest='rate', type=float, default=1.0, metavar='F',
+                   help='playback speed relative to the recorded log times [-] (default 1; '
+                   '0.5: half speed)')
+    add_deprecated_alias(p, '--rate', '--speed-factor', 'rate', float)
     p.add_argument('--topics', nargs='+', help='only these (recorded) topics')
-    p.add_argument('--remap', action='append', metavar='FROM:=TO')
-    p.add_argument('--loop', action='store_true')
+    p.add_argument('--remap', action='append', metavar='FROM:=TO',
+                   help='publish recorded topic FROM on TO (repeatable)')
+    p.add_argument('--loop', action='store_true', help='play the recording again and again')
     p.add_argument('--clock', action='store_true', help='publish /clock from the log time')
     p.add_argument('--wait-subscribers', type=int, default=1, metavar='N',
                    help='wait until N subscriptions matched in total (default 1)')
     p.add_argument('--wait-timeout', type=float, default=2.0, metavar='S',
                    help='longest wait for subscribers [s] (default 2)')
+    p.add_argument('--quiet', '-q', action='store_true',
+                   help='no summary line (warnings and errors only)')
 
 
 def _message_class(msg_type):
@@ -117,7 +123,7 @@ def _parse_remaps(items):
 def run(args):
     """Republish a recording with its original timing; return the exit status."""
     if not (math.isfinite(args.rate) and args.rate > 0):
-        raise RunError(f'--rate {args.rate} must be > 0')
+        raise RunError(f'--speed-factor {args.rate} must be > 0')
     rec = open_recording(args.file, topics=args.topics)
     rec.require_ros2()
     remap = _parse_remaps(args.remap)
@@ -215,8 +221,9 @@ def _finish(args, pubs, sent, wall):
     from rclpy.duration import Duration
     unacked = [t for t, p in pubs.items()
                if not p.wait_for_all_acked(Duration(seconds=PLAY_ACK_TIMEOUT_S))]
-    print(f'published {sent} messages on {len(pubs)} topics in {wall:.3f} s '
-          f'(rate {args.rate:g})')
+    if not args.quiet:
+        print(f'published {sent} messages on {len(pubs)} topics in {wall:.3f} s '
+              f'(speed factor {args.rate:g})')
     if unacked:
         print(f'{PROG}: warning: not acknowledged within {PLAY_ACK_TIMEOUT_S:g} s on '
               f'{", ".join(unacked)}', file=sys.stderr)

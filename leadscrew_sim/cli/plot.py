@@ -16,12 +16,13 @@ COLUMNS = ('nut_position', 'nut_velocity', 'screw_angle', 'motor_torque', 'norma
 
 def add_arguments(p):
     """Add the options of ``plot`` to parser ``p``."""
-    p.add_argument('file')
-    p.add_argument('--output', '-o', help='PNG path (default <stem>.png)')
-    p.add_argument('--width', type=int, default=1200, help='pixels')
-    p.add_argument('--height', type=int, default=900, help='pixels')
-    p.add_argument('--dpi', type=int, default=100)
-    p.add_argument('--quiet', '-q', action='store_true')
+    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('--output', '-o', metavar='FILE.png', help='PNG path (default <stem>.png)')
+    p.add_argument('--width', type=int, default=1200, help='image width [px] (default 1200)')
+    p.add_argument('--height', type=int, default=900, help='image height [px] (default 900)')
+    p.add_argument('--dpi', type=int, default=100,
+                   help='resolution [dots per inch] (default 100)')
+    p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
 
 
 def _recorded(rec):

@@ -26,11 +26,14 @@ HELP = 're-simulate a recording and compare'
 
 def add_arguments(p):
     """Add the options of ``resim`` to parser ``p``."""
-    p.add_argument('file')
-    p.add_argument('--set', action='append', metavar='NAME=VALUE')
-    p.add_argument('--output', '-o', help='output MCAP (default <stem>.resim.mcap)')
+    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='override a recorded physics parameter (repeatable; YAML scalar in '
+                   'the parameter\'s unit)')
+    p.add_argument('--output', '-o', metavar='FILE.mcap',
+                   help='output MCAP (default <stem>.resim.mcap)')
     add_compression_argument(p)
-    p.add_argument('--quiet', '-q', action='store_true')
+    p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
 
 
 def compare(sim, new):

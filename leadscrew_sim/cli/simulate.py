@@ -6,7 +6,7 @@ its options and prints what it wrote.
 """
 import sys
 
-from .args import add_compression_argument, PROG
+from .args import add_compression_argument, add_deprecated_alias, PROG
 from .event_lines import print_events
 from ..offline.options import DEFAULT_PRESET
 from ..offline.simulate import simulate
@@ -16,17 +16,21 @@ HELP = 'run the model offline and write an MCAP file'
 
 def add_arguments(p):
     """Add the options of ``simulate`` to parser ``p``."""
-    p.add_argument('--preset', help=f'preset name (default {DEFAULT_PRESET})')
+    p.add_argument('--preset', help=f'preset name or YAML path (default {DEFAULT_PRESET})')
     p.add_argument('--params', help='ROS 2 parameter file (<node>: ros__parameters:)')
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
-                   help='override a physics parameter (repeatable; YAML scalar)')
+                   help='override a physics parameter or joint_prefix (repeatable; YAML '
+                   'scalar in the parameter\'s unit)')
     p.add_argument('--duration', type=float, help='simulated time [s] (default 1, or the '
                    'duration of the --excite profile)')
-    p.add_argument('--rate', type=float, help='update rate [Hz], dt = 1/rate (default 1000)')
+    p.add_argument('--update-rate', dest='rate', type=float, metavar='HZ',
+                   help='update rate [Hz], dt = 1/rate (default 1000)')
+    add_deprecated_alias(p, '--rate', '--update-rate', 'rate', float)
     p.add_argument('--torque', type=float, help='constant motor torque [N m]')
     p.add_argument('--torque-csv', help='CSV time,torque [s, N m], zero-order hold')
     p.add_argument('--profile', choices=('step', 'ramp', 'sine', 'move', 'trapezoid'),
-                   help='torque profile (move: PD position control to --target), or '
+                   help='torque profile (step, ramp, sine: --amplitude [N m]; move: PD position '
+                        'control to --target), or '
                         'trapezoid: a trapezoidal move to --target through the drive\'s '
                         'position loop (--speed, --accel)')
     p.add_argument('--velocity', type=float, help='constant nut velocity command [m/s] '
@@ -54,7 +58,8 @@ def add_arguments(p):
                    'the first step at or after its time')
     p.add_argument('--clock', action='store_true', help='also record /clock every tick')
     add_compression_argument(p)
-    p.add_argument('--output', '-o', help='output MCAP (default runs/sim_<preset>_<time>.mcap)')
+    p.add_argument('--output', '-o', metavar='FILE.mcap',
+                   help='output MCAP (default runs/sim_<preset>_<time>.mcap)')
     p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
 
 

@@ -76,7 +76,7 @@ def fit_recording(args):
     """
     names = fit_names(args.fit)
     if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
-        raise RunError(f'--rate {args.rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'--step-rate {args.rate} Hz must lie in [1, 1e6]')
     t_wall = time.perf_counter()
     rec = open_recording(args.file)
     rec.require_ros2()

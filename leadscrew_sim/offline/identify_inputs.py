@@ -84,7 +84,7 @@ class ForeignReplay:
     """
     A recording of another source: JointState states and drive commands on mapped topics.
 
-    The steps run at ``--rate`` from the first command's log time; every
+    The steps run at ``--step-rate`` from the first command's log time; every
     command goes through :class:`CommandHold` (the node's rules), the states
     are matched to steps by their stamps.
     """

@@ -7,6 +7,7 @@ integration becomes one in :func:`simulation_faults`.
 """
 import contextlib
 import ctypes
+import difflib
 import gc
 import math
 from pathlib import Path
@@ -79,10 +80,18 @@ def parse_sets(items):
         elif name == 'joint_prefix':
             run[name] = '' if value is None else str(text)
         else:
-            raise RunError(f"--set: unknown parameter '{name}' (physics parameters: "
-                           f"{', '.join(sorted(ScrewParams.parameter_names()))}; or "
-                           'joint_prefix)')
+            raise RunError(f"--set: unknown parameter '{name}' ({did_you_mean(name)})")
     return phys, run
+
+
+def did_you_mean(name):
+    """Return the hint for an unknown ``--set`` name: its nearest accepted names."""
+    known = ScrewParams.parameter_names() + ('joint_prefix',)
+    close = difflib.get_close_matches(name, known, n=3)
+    if close:
+        return f'did you mean {" or ".join(close)}?'
+    return ('no parameter of a similar name; the physics parameters are in doc/model.md, '
+            'the run setting is joint_prefix')
 
 
 def parse_options(items, flag='--opt'):

@@ -97,7 +97,7 @@ def _simulate(args, warn):
     if args.duration is None:
         args.duration = profile.duration if profile is not None else 1.0
     if not (math.isfinite(rate) and 1.0 <= rate <= 1e6):
-        raise RunError(f'--rate {rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'--update-rate {rate} Hz must lie in [1, 1e6]')
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise RunError(f'--duration {args.duration} s must be > 0')
     prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))

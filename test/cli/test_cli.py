@@ -271,7 +271,8 @@ def test_play_timing(tmp_path, run_exe):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
     path = tmp_path / 'p.mcap'
-    cli_ok('simulate', '--rate', 100, '--duration', 2.0, '--torque', 0.0, '--output', path, '-q')
+    cli_ok('simulate', '--update-rate', 100, '--duration', 2.0, '--torque', 0.0, '--output', path,
+           '-q')
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node('play_listener', context=ctx)

@@ -1,11 +1,17 @@
 """
-Every command of the README's plain-venv block works as written.
+Every command of the README's plain-venv block and of its offline-tools block works as written.
 
 The block after the ``venv-commands`` marker is run line by line with bash,
 in a scratch directory whose ``.venv`` is this repository's virtual
 environment, as a user would run it from the repository root. A command
 that runs until Ctrl-C (the node) must bring up ``/joint_states`` and exit
 0 on SIGINT; the others must exit 0. The block must not be empty.
+
+The block after the ``offline-commands`` marker is run line by line, in
+order, in another scratch directory with the venv's ``bin/`` first on the
+PATH (and ``AMENT_PREFIX_PATH`` set, as the venv block does); every line
+must exit 0, except lines marked ``# needs a running node``, which are
+skipped.
 """
 import os
 import re
@@ -18,20 +24,29 @@ import pytest
 from helpers import REPO, wait_for
 
 MARKER = '<!-- venv-commands'
+OFFLINE_MARKER = '<!-- offline-commands'
+#: The comment that marks a line of the offline block the test skips.
+NEEDS_NODE = '# needs a running node'
 
 
-def venv_commands():
-    """Return the lines of the README's venv-commands block."""
+def venv_commands(marker=MARKER):
+    """Return the lines of the README's bash block after ``marker``."""
     text = (REPO / 'README.md').read_text()
-    start = text.index(MARKER)
+    start = text.index(marker)
     block = re.search(r'```bash\n(.*?)```', text[start:], re.S)
     return [line for line in block.group(1).splitlines() if line.strip()]
 
 
 def test_the_block_exists_and_names_the_venv_executables():
     lines = venv_commands()
-    assert any('.venv/lib/leadscrew_sim/leadscrew_sim_node' in line for line in lines)
-    assert any('.venv/lib/leadscrew_sim/leadscrew_sim ' in line for line in lines)
+    assert 'source .venv/bin/activate' in lines
+    assert any(line.startswith('leadscrew_sim_node ') for line in lines)
+    assert any(line.startswith('leadscrew_sim ') for line in lines)
+
+
+def test_the_offline_block_exists_and_uses_the_command():
+    lines = venv_commands(OFFLINE_MARKER)
+    assert lines and all(line.startswith(('leadscrew_sim ', 'printf ')) for line in lines)
 
 
 @pytest.fixture(scope='module')
@@ -66,7 +81,7 @@ def test_every_venv_command_runs(scratch):
     env.pop('AMENT_PREFIX_PATH', None)          # the block sets it
     prelude = []
     for line in venv_commands():
-        if line.startswith('export '):
+        if line.startswith(('export ', 'source ')):
             prelude.append(line)
             continue
         script = '\n'.join(prelude + [line])
@@ -87,3 +102,23 @@ def test_every_venv_command_runs(scratch):
                                  capture_output=True, text=True, timeout=300)
             assert res.returncode == 0, f'{line}\n{res.stdout[-2000:]}\n{res.stderr[-2000:]}'
     assert wait_for(lambda: (scratch / 'runs' / 'ss.png').is_file(), 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_every_offline_command_runs(tmp_path):
+    bin_dir = REPO / '.venv' / 'bin'
+    if not (bin_dir / 'leadscrew_sim').exists():
+        pytest.skip('.venv/bin/leadscrew_sim exists after make setup')
+    env = dict(os.environ, PATH=f'{bin_dir}{os.pathsep}{os.environ.get("PATH", "")}',
+               AMENT_PREFIX_PATH=str(REPO / '.venv'))
+    ran = 0
+    for line in venv_commands(OFFLINE_MARKER):
+        if NEEDS_NODE in line:
+            continue
+        res = subprocess.run(['bash', '-c', line], cwd=tmp_path, env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert res.returncode == 0, f'{line}\n{res.stdout[-2000:]}\n{res.stderr[-2000:]}'
+        ran += 1
+    assert ran >= 5
+    assert (tmp_path / 'ss.png').is_file() and (tmp_path / 'runs' / 'ss.resim.mcap').is_file()

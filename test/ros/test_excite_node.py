@@ -76,7 +76,7 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     node = start_recording_node(run_exe, tmp_path, 'preset:=tr12x3', 'command_timeout:=2.0')
     options = dict(targets=3, cycles=1, travel=0.004, dwell=0.6, speed=0.01)
     opts = [a for k, v in options.items() for a in ('--opt', f'{k}={v}')]
-    r, sent = excite(tmp_path, 'iso230', *opts, '--rate', 100, '--wait-timeout', 60)
+    r, sent = excite(tmp_path, 'iso230', *opts, '--command-rate', 100, '--wait-timeout', 60)
     assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
     assert 'excite: done' in r.stdout
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
@@ -174,7 +174,7 @@ def test_list_and_dry_run_print_the_profiles_without_ros():
     # The dry run prints the commands at k / rate: a ramp of 0.2 N m over 1 s
     # after a 0.05 s dwell at 0 is 0.2 (t - 0.05) (closed form of the ramp).
     r = cli_ok('excite', 'breakaway', '--opt', 'center=0', '--opt', 'peak=0.2', '--opt',
-               'ramp_time=1', '--opt', 'dwell=0.05', '--rate', 100, '--dry-run', 30)
+               'ramp_time=1', '--opt', 'dwell=0.05', '--command-rate', 100, '--dry-run', 30)
     lines = [ln.split() for ln in r.stdout.splitlines() if ln.endswith(tuple('0123456789'))
              and ' s  ' in ln]
     assert len(lines) == 30
@@ -188,7 +188,7 @@ def test_list_and_dry_run_print_the_profiles_without_ros():
     (('sweep', '--opt', 'levels'), "--opt 'levels': expected name=value"),
     (('chirp',), "unknown excitation profile 'chirp'"),
     ((), 'give a profile NAME'),
-    (('sweep', '--rate', 'nan'), '--rate nan is not a finite number'),
+    (('sweep', '--command-rate', 'nan'), '--command-rate nan is not a finite number'),
     (('sweep', '--prefix', 'z_'), '--prefix names joints: it needs --joint-commands'),
     (('sweep', '--set', 'mu_x=1'), "--set: unknown parameter 'mu_x'"),
 ])
@@ -213,7 +213,7 @@ def test_the_node_recording_of_an_excite_run_identifies(run_exe, tmp_path):
                                 'real_time_factor:=1.0', 'command_timeout:=2.0',
                                 f'mu_s:={truth["mu_s"]}', f'mu_k:={truth["mu_k"]}',
                                 'encoder_counts:=131072', 'scale_resolution:=1.0e-6')
-    r, sent = excite(tmp_path, 'reversals', '--opt', 'cycles=3', '--rate', 100,
+    r, sent = excite(tmp_path, 'reversals', '--opt', 'cycles=3', '--command-rate', 100,
                      '--wait-timeout', 60)
     assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()

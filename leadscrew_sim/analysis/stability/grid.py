@@ -9,6 +9,7 @@ turns one case into one row: a case the model refuses, or that goes
 non-finite, is a row with its reason in ``error``, never an exception.
 """
 import dataclasses
+import difflib
 import itertools
 import math
 
@@ -65,7 +66,10 @@ def parse_axis(text, base):
     if not sep:
         raise ParameterError('grid', f'{text!r} is not NAME=START:STOP:N[:log]')
     if name != 'speed' and name not in _NUMERIC:
-        raise ParameterError('grid', f'{name!r} is not speed or a numeric model parameter')
+        close = difflib.get_close_matches(name, ('speed',) + tuple(_NUMERIC), n=3)
+        hint = f' (did you mean {" or ".join(close)}?)' if close else ''
+        raise ParameterError('grid', f'{name!r} is not speed or a numeric model parameter'
+                             f'{hint}')
     parts = spec.split(':')
     if len(parts) not in (3, 4) or (len(parts) == 4 and parts[3] != 'log'):
         raise ParameterError('grid', f'{text!r} is not NAME=START:STOP:N[:log]')
