@@ -222,3 +222,35 @@ def test_refusals():
         linear_stability(p, 1e-3, 'torque')
     with pytest.raises(ValueError, match='anti_backlash'):
         linear_stability(ScrewParams(anti_backlash=True, preload_force=10.0), 1e-3)
+
+
+def test_velocity_loop_threshold_rigid_coupling():
+    """
+    Velocity drive, rigid coupling: the 1-DOF threshold with the loop's damping K_v.
+
+    With the continuous PI loop on the rigid axis, J_e q'' + (c_s + K_v +
+    c_x r_m r_t G + c_f) q' + (K_v / T_i) q = 0: neutral where the damping sum
+    is 0 (the integral adds stiffness only). The stiff contact shifts it by
+    far less than 1 %.
+    """
+    v = 2e-3
+
+    def axis(mv):
+        return raising_axis(mu_viscous=mv, coupling_stiffness=0.0, coupling_damping=0.0,
+                            contact_stiffness=1e10, velocity_gain=3.85e-3,
+                            velocity_integral_time=0.0127)
+
+    p = axis(0.0)
+    rm, rt, lam, tf = geometry(p)
+    sl, cl, tl = math.sin(lam), math.cos(lam), math.tan(lam)
+    mu, _ = apparent_mu(p, v / sl)
+    g = (tl + mu) / (1.0 - mu * tl)
+    w = (p.nut_mass + p.payload_mass) * p.gravity + p.guide_viscous * v
+    c_sum = p.bearing_viscous + p.velocity_gain + p.guide_viscous * rm * rt * g
+    slope = -c_sum * cl ** 3 * (1.0 - mu * tl) ** 2 / (rm * rm * w)
+    rigid = slope / tf
+    b_ours = bisect(lambda mv: linear_stability(axis(mv), v, 'velocity')['growth_rate'],
+                    3.0 * rigid, 0.3 * rigid)
+    assert abs(b_ours - rigid) < 0.01 * abs(rigid), (b_ours, rigid)
+    assert linear_stability(axis(1.2 * rigid), v)['mechanism'] == 'negative_damping'
+    assert linear_stability(axis(0.8 * rigid), v)['mechanism'] == 'stable'
