@@ -96,8 +96,9 @@ def operating_point(params, speed, drive='velocity'):
     Raises
     ------
     ParameterError
-        For a zero speed, an unknown drive, a split nut, an unloaded thread or a
-        torque beyond max_torque.
+        For a zero speed, an unknown drive, a split nut, an unloaded thread, a
+        torque beyond max_torque or (velocity drive) a reference beyond
+        velocity_limit.
 
     """
     p = params
@@ -153,6 +154,9 @@ def operating_point(params, speed, drive='velocity'):
     if drive == 'velocity' and kv == 0.0:
         raise ParameterError('velocity_gain', '0 N m s/rad: the velocity loop cannot hold a '
                              'speed (give a gain > 0, or use the ideal drive)')
+    if drive == 'velocity' and abs(w_ref) > p.velocity_limit:
+        raise ParameterError('velocity_limit', f'{p.velocity_limit!r} rad/s is below the '
+                             f'{abs(w_ref):.4g} rad/s reference that {v!r} m/s needs')
     return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0, slope=slope,
                 load=load, N0=n0, Fa0=fa0, torque=torque, twist=twist, delta0=delta0, G=g,
                 J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive, P=P)
