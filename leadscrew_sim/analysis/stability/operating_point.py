@@ -70,6 +70,28 @@ def load_factor(mu, tan_l, sigma_s):
     return (tan_l + sigma_s * mu) / (1.0 - sigma_s * mu * tan_l)
 
 
+def _axial_load(p, v, s):
+    """Return W [N]: c_x v + F_x0 s - F_g - F_ext, the force the thread supplies along +x."""
+    f_g = -(p.nut_mass + p.payload_mass) * p.gravity * math.sin(p.inclination)
+    return p.guide_viscous * v + p.guide_coulomb * s - f_g - p.external_force
+
+
+def _drive_state(p, drive, v, omega, torque):
+    """Return (w_ref [rad/s], integral [rad]) of the velocity loop holding omega at torque."""
+    kv, ti = p.velocity_gain, p.velocity_integral_time
+    if ti > 0.0:
+        w_ref, integral = omega, (torque * ti / kv if kv > 0.0 else 0.0)
+    else:
+        w_ref, integral = omega + (torque / kv if kv > 0.0 else 0.0), 0.0
+    if drive == 'velocity' and kv == 0.0:
+        raise ParameterError('velocity_gain', '0 N m s/rad: the velocity loop cannot hold a '
+                             'speed (give a gain > 0, or use the ideal drive)')
+    if drive == 'velocity' and abs(w_ref) > p.velocity_limit:
+        raise ParameterError('velocity_limit', f'{p.velocity_limit!r} rad/s is below the '
+                             f'{abs(w_ref):.4g} rad/s reference that {v!r} m/s needs')
+    return w_ref, integral
+
+
 def operating_point(params, speed, drive='velocity'):
     """
     Return the steady sliding state of the axis at nut speed ``speed``, q sense.
@@ -120,8 +142,7 @@ def operating_point(params, speed, drive='velocity'):
     mu0 = mu_apparent(P, vs0)
     slope = friction_slope(P, vs0)
     m = p.nut_mass + p.payload_mass
-    f_g = -m * p.gravity * math.sin(p.inclination)
-    load = p.guide_viscous * v + p.guide_coulomb * s - f_g - p.external_force
+    load = _axial_load(p, v, s)
     if load == 0.0:
         raise ParameterError('speed', f'{v!r} m/s leaves the thread unloaded (no axial load): '
                              'the nut floats in the backlash; add a load or guide damping')
@@ -146,17 +167,7 @@ def operating_point(params, speed, drive='velocity'):
     delta0 = -sigma * (p.backlash / 2.0 + n_abs * cl / p.contact_stiffness)
     g = load_factor(mu0, tl, sigma * s)
     j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + m * rm * rt * g
-    kv, ti = p.velocity_gain, p.velocity_integral_time
-    if ti > 0.0:
-        w_ref, integral = omega, (torque * ti / kv if kv > 0.0 else 0.0)
-    else:
-        w_ref, integral = omega + (torque / kv if kv > 0.0 else 0.0), 0.0
-    if drive == 'velocity' and kv == 0.0:
-        raise ParameterError('velocity_gain', '0 N m s/rad: the velocity loop cannot hold a '
-                             'speed (give a gain > 0, or use the ideal drive)')
-    if drive == 'velocity' and abs(w_ref) > p.velocity_limit:
-        raise ParameterError('velocity_limit', f'{p.velocity_limit!r} rad/s is below the '
-                             f'{abs(w_ref):.4g} rad/s reference that {v!r} m/s needs')
+    w_ref, integral = _drive_state(p, drive, v, omega, torque)
     return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0, slope=slope,
                 load=load, N0=n0, Fa0=fa0, torque=torque, twist=twist, delta0=delta0, G=g,
                 J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive, P=P)
