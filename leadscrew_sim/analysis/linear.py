@@ -6,14 +6,13 @@ the drive's cascade, sampled at the drive period with the torque held:
 :func:`design_gains` is the rule of the shipped gains, :func:`closed_loop`
 the sampled loop, :func:`loop_response` its bandwidths and step figures
 (the gains table of doc/model.md). The drive's update period is the
-model's (:func:`leadscrew_sim.core.engine.drive.update_period`).
+model's (:func:`leadscrew_sim.core.drive_control.drive_period`).
 """
 import math
 
 import numpy as np
 
-from ..core.engine.drive import update_period
-from ..core.engine.packing import auto_substep
+from ..core.drive_control import drive_period
 
 __all__ = ['closed_loop', 'design_gains', 'KP_DIVISOR', 'loop_response', 'TI_FACTOR',
            'total_inertia']
@@ -117,10 +116,7 @@ def loop_response(p, dt=1e-3, nsub=None):
         overshoot [-] and settling_time (2 %) [s] of a small position step.
 
     """
-    if nsub is None:
-        nsub = max(1, math.ceil(dt / auto_substep(p) - 1e-9))
-    m = update_period(nsub, dt, p.drive_rate)
-    td = m * dt / nsub
+    td = drive_period(p, dt, nsub)
     j = total_inertia(p)
     kv, ti, kp = p.velocity_gain, p.velocity_integral_time, p.position_gain
     a_pos, b_pos, _ = closed_loop(j, kv, ti, kp, td)

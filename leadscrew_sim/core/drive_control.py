@@ -16,6 +16,7 @@ from . import drive_modes as DM
 from .engine import drive as D
 from .engine import kernel as K
 from .engine import layout as L
+from .engine.packing import auto_substep
 
 
 class DriveControl:
@@ -198,3 +199,23 @@ class DriveControl:
         if P[L.P_DSCALE] > 0.5:
             return P[L.P_DQ0] + (s[L.S_XS] - P[L.P_DX0]) * (1.0 / P[L.P_RT])
         return s[L.S_EQ]
+
+
+def drive_period(params, dt, nsub=None):
+    """
+    Return the servo drive's update period [s] for steps of dt: a whole number of substeps.
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The axis (its drive_rate).
+    dt : float
+        Step [s].
+    nsub : int, optional
+        Substeps per step; default the model's for params and dt.
+
+    """
+    if nsub is None:
+        nsub = max(1, math.ceil(dt / auto_substep(params) - 1e-9))
+    m = D.update_period(nsub, dt, params.drive_rate)
+    return m * dt / nsub

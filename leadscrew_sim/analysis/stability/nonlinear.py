@@ -33,9 +33,9 @@ import math
 import numpy as np
 
 from ...core.drive_modes import MODE_VELOCITY
-from ...core.engine import layout as L
 from ...core.model import LeadScrewModel
 from ...core.params import ParameterError
+from ...core.steady import place_sliding, run_prescribed_motor
 from .operating_point import operating_point
 
 __all__ = ['measure', 'nonlinear_stability', 'OSCILLATING', 'VERDICTS']
@@ -48,30 +48,6 @@ IDEAL_MOTOR_INERTIA = 10.0      #: motor inertia of the prescribed motor [kg m^2
 VERDICTS = ('stable', 'limit_cycle', 'bistable')
 
 
-def _place(model, op, stuck):
-    """Put the model on the steady sliding state (q sense); stuck: screw and nut at rest."""
-    s, P = model.state, model._P
-    hs = model.params.hand_sign
-    q0, omega = s[L.S_Q], op['omega']
-    rate = 0.0 if stuck else omega
-    s[L.S_Q] = q0
-    s[L.S_DQ] = rate
-    s[L.S_QM] = q0 + op['twist']
-    s[L.S_WM] = omega if not op['rigid'] else rate
-    s[L.S_XA] = P[L.P_RT] * q0 + op['delta0']
-    s[L.S_VA] = rate * P[L.P_RT]
-    s[L.S_XB] = s[L.S_XA]
-    s[L.S_TE] = s[L.S_DTOUT] = op['torque']
-    s[L.S_FAPREV] = op['Fa0']
-    s[L.S_EQ], s[L.S_EW] = s[L.S_QM], s[L.S_WM]
-    s[L.S_XS], s[L.S_VS] = s[L.S_XA], s[L.S_VA]
-    if op['drive'] == 'velocity':
-        model.command('velocity', velocity=hs * op['w_ref'], effort=0.0)
-        s[L.S_DMODE] = MODE_VELOCITY
-        s[L.S_DINT] = op['integral']
-        s[L.S_DWREF] = op['w_ref']
-
-
 def _run_velocity(model, op, n):
     """Run n steps under the held velocity command; return (nut velocity, stuck)."""
     hs = model.params.hand_sign
@@ -82,22 +58,7 @@ def _run_velocity(model, op, n):
 
 def _run_ideal(model, op, n):
     """Run n steps with the motor (or rigid screw) angle prescribed; see the module doc."""
-    s, p = model.state, model.params
-    hs, omega, dt = p.hand_sign, op['omega'], model.dt
-    kc, cc = p.coupling_stiffness, p.coupling_damping
-    rigid = op['rigid']
-    qm0 = s[L.S_QM]
-    vel, stuck = np.empty(n), np.empty(n)
-    for i in range(n):
-        torque = 0.0 if rigid else kc * (s[L.S_QM] - s[L.S_Q]) + cc * (s[L.S_WM] - s[L.S_DQ])
-        model.advance(hs * torque)
-        qm = qm0 + omega * dt * (i + 1)
-        if rigid:
-            s[L.S_Q], s[L.S_DQ] = qm, omega
-        s[L.S_QM], s[L.S_WM] = qm, omega
-        vel[i] = s[L.S_VA]
-        stuck[i] = 1.0 if model.out[L.O_STICKA] == 1.0 else 0.0
-    return vel, stuck
+    return run_prescribed_motor(model, n, op['omega'])
 
 
 def measure(velocity, stuck, dt):
@@ -132,9 +93,7 @@ def _one_run(params, op, duration, dt, stuck):
     if op['drive'] == 'ideal':
         params = dataclasses.replace(params, motor_inertia=IDEAL_MOTOR_INERTIA)
     model = LeadScrewModel(params, dt=dt)
-    _place(model, op, stuck)
-    if not stuck:
-        model.state[L.S_VA] *= 1.0 + SMALL_PERTURBATION
+    place_sliding(model, op, stuck, 1.0 if stuck else 1.0 + SMALL_PERTURBATION)
     n = max(4, int(round(duration / dt)))
     run = _run_ideal if op['drive'] == 'ideal' else _run_velocity
     vel, stk = run(model, op, n)

@@ -14,40 +14,13 @@ Only the single nut is handled: an anti-backlash (split) nut is refused.
 """
 import math
 
-from ...core.engine.friction import friction_constants, mu_apparent
-from ...core.engine.packing import pack_params
+from ...core.friction_law import FrictionLaw
 from ...core.params import ParameterError
 
-__all__ = ['DRIVES', 'friction_slope', 'operating_point']
+__all__ = ['DRIVES', 'operating_point']
 
 #: The drives of the analysis: the servo's velocity loop, or a prescribed motor angle.
 DRIVES = ('velocity', 'ideal')
-
-
-def friction_slope(P, v):
-    """
-    Return dmu'/dv [s/m] of the package's friction law at the speed |v| > 0.
-
-    The derivative of mu'(v) = mu_k' + (mu_s' - mu_k') exp(-(v/v_st)^d) + mu_v' v
-    (friction.mu_apparent on the parameter vector P); 0 where the law clips at 0.
-
-    Parameters
-    ----------
-    P : numpy.ndarray
-        The packed parameter vector.
-    v : float
-        Sliding speed [m/s].
-
-    """
-    a = abs(v)
-    if mu_apparent(P, a) <= 0.0:
-        return 0.0
-    _, muv, drop, vst, _, dst, _ = friction_constants(P)
-    slope = muv
-    if drop != 0.0:
-        z = a / vst
-        slope -= drop * dst * z ** (dst - 1.0) / vst * math.exp(-z ** dst)
-    return slope
 
 
 def load_factor(mu, tan_l, sigma_s):
@@ -132,15 +105,15 @@ def operating_point(params, speed, drive='velocity'):
     if p.anti_backlash:
         raise ParameterError('anti_backlash', 'true: the stability analysis handles the '
                              'single nut only (set it false)')
-    P = pack_params(p)
+    law = FrictionLaw(p)
     lam = p.lead_angle
     sl, cl, tl = math.sin(lam), math.cos(lam), math.tan(lam)
     rt, rm = p.lead_ratio, p.r_m
     s = 1.0 if v > 0.0 else -1.0
     omega = v / rt
     vs0 = v / sl
-    mu0 = mu_apparent(P, vs0)
-    slope = friction_slope(P, vs0)
+    mu0 = law.mu(vs0)
+    slope = law.slope(vs0)
     m = p.nut_mass + p.payload_mass
     load = _axial_load(p, v, s)
     if load == 0.0:
@@ -170,4 +143,4 @@ def operating_point(params, speed, drive='velocity'):
     w_ref, integral = _drive_state(p, drive, v, omega, torque)
     return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0, slope=slope,
                 load=load, N0=n0, Fa0=fa0, torque=torque, twist=twist, delta0=delta0, G=g,
-                J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive, P=P)
+                J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive)
