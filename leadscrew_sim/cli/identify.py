@@ -10,6 +10,7 @@ from .identify_report import report
 from ..analysis.identify import fit as ident
 from ..offline.identify import fit_recording
 from ..offline.identify_output import write_outputs
+from ..offline.identify_progress import FitProgress
 from ..offline.options import keep_freed_memory
 
 HELP = 'fit friction, backlash and other parameters to a recording'
@@ -48,13 +49,22 @@ def add_arguments(p):
                    'a torque-mode recording and compare only the steps that state '
                    'determines (auto: when one run from the start does not explain the '
                    'recording; on: always; off: never)')
-    p.add_argument('--quiet', '-q', action='store_true', help='do not print the report')
+    p.add_argument('--write-all', action='store_true', help='with --output-params: write '
+                   'every parameter (the unidentified ones at their starting values, marked '
+                   'by a comment), not only the identified ones')
+    p.add_argument('--quiet', '-q', action='store_true', help='print neither the report nor '
+                   'the progress (shown on a terminal only)')
 
 
 def run(args):
     """Fit the parameters and write the report, the parameter file and the plot."""
     keep_freed_memory()                 # thousands of re-simulations reuse their blocks
-    out = fit_recording(args)
+    progress = None if args.quiet else FitProgress()      # on a terminal only
+    try:
+        out = fit_recording(args, progress)
+    finally:
+        if progress is not None:
+            progress.done()
     text = report(args.file, out)
     if not args.quiet:
         print(text)

@@ -35,6 +35,10 @@ def report(path, out):
              f'starting and fixed values from {out["label"]}',
              f'fitted against: {", ".join(meas.names)} (re-simulated without sensor noise '
              'and quantisation; each position signal with a free offset)']
+    if getattr(problem, 'exact', False):
+        lines.append('exact data (ideal sensors): no statistical intervals; each noise level '
+                     'is the numerical floor, and a parameter that changes the signals by more '
+                     'than it is fitted ("exact data"), not called identified')
     if getattr(problem, 'slow', 0):
         lines.append(f'left out: {problem.slow} steps of a commanded speed below '
                      'the encoder\'s velocity quantum through the drive period times 3 (the '
@@ -57,13 +61,13 @@ def report(path, out):
     for name, v0, v, lo, hi, vd in zip(res.names, res.initial, res.values, res.lower,
                                        res.upper, res.verdicts):
         ci = f'[{_g(lo)}, {_g(hi)}]' if vd.identified else '-'
-        value = _g(v) if vd.identified else f'({_g(v)})'
+        value = _g(v) if vd.fitted else f'({_g(v)})'
         lines.append(f'{name:<20} {_UNITS[name]:<8} {_g(v0):>13} {value:>13} {ci:>29}  '
                      f'{vd.status}')
     lines.append('')
     lines.append('verdicts:')
     for vd in res.verdicts:
-        kept = '' if vd.identified else ' (kept at its starting value)'
+        kept = '' if vd.fitted else ' (kept at its starting value)'
         lines.append(f'  {vd.name}: {vd.reason}{kept}')
     fitted = [i for i, vd in enumerate(res.verdicts) if vd.identified]
     if len(fitted) > 1:
@@ -83,7 +87,8 @@ def report(path, out):
                 'only to that'
         lines.append(f'{name:<14} {meas.units[name]:<5} {sigma:>12.4g} {rms0[i]:>12.4g} '
                      f'{rms1[i]:>12.4g} {rms1[i] / sigma:>10.3g}  {how}')
-    lines += ['', f'covariance: HAC sandwich (Bartlett, bandwidth {res.bandwidth} steps); '
+    lines += ['', 'exact data: no covariance, no intervals' if getattr(problem, 'exact', False)
+              else f'covariance: HAC sandwich (Bartlett, bandwidth {res.bandwidth} steps); '
               f'{pct} % intervals from the t distribution with {res.dof} degrees of freedom',
               f'{problem.evaluations} re-simulations ({res.nfev} in the fit), '
               f'{out["wall"]:.2f} s wall; optimiser: {res.message}']

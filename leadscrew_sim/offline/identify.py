@@ -53,7 +53,7 @@ def horizons(problem):
     return hs or None
 
 
-def fit_recording(args):
+def fit_recording(args, progress=None):
     """
     Fit the parameters of ``args`` to its recording; return the pieces of the outputs.
 
@@ -63,6 +63,8 @@ def fit_recording(args):
         The options of ``leadscrew_sim identify`` (the recording ``file``,
         ``fit``, the starting values, a foreign recording's mapping,
         ``rate`` [Hz], ``max_nfev``, ``restarts``).
+    progress : FitProgress, optional
+        The status line on a terminal (:mod:`.identify_progress`).
 
     Returns
     -------
@@ -82,6 +84,7 @@ def fit_recording(args):
     rec.require_ros2()
     start, label = start_params(args, rec)
     problem = Problem(args, rec, start)
+    problem.progress = progress
     try:
         coords = ident.coordinates(names, start)
     except ValueError as exc:
@@ -92,10 +95,12 @@ def fit_recording(args):
     single = None           # the fit in one run, when it missed and restarts replaced it
     if misfit and args.restarts == 'auto' and problem.restart():
         single = _reject(res, misfit)
+        problem.stage = 'fit with restarts at the rests'
         res, initial, final, misfit = _fit(plan)
         res.nfev += single.nfev
     second = None           # whether a second attempt explained the recording (None: none)
     if misfit and problem.anchoring is None:
+        problem.stage = 'second fit'
         res, initial, final, misfit = _rescanned(plan, weights, (res, initial, final, misfit))
         second = not misfit
     problem.bootstrap = {}
@@ -104,10 +109,11 @@ def fit_recording(args):
         final = problem.replay(dict(zip(res.names, res.values)))
     elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
             ident.sensor_sigma(ScrewParams()):
+        problem.stage = 'bootstrap of the intervals'
         res = bootstrap(problem, res, names, start, coords, args.max_nfev, plan.bounds)
         final = problem.replay(dict(zip(res.names, res.values)))
     params = ScrewParams.from_dict({n: v for n, v, vd in zip(res.names, res.values,
-                                                             res.verdicts) if vd.identified},
+                                                             res.verdicts) if vd.fitted},
                                    base=start)
     return dict(res=res, params=params, problem=problem, label=label, initial=initial,
                 final=final, wall=time.perf_counter() - t_wall, single=single, second=second)
@@ -154,7 +160,7 @@ def _fit(plan, rescan=False):
     why = hints(problem.compared(initial))
     res = ident.fit(problem.residuals, plan.coords, horizons=horizons(problem), hints=why,
                     max_nfev=plan.max_nfev, profile=problem.anchoring is not None,
-                    rescan=rescan, jac_steps=problem.jac_steps)
+                    rescan=rescan, jac_steps=problem.jac_steps, exact=problem.exact)
     fitted = dict(zip(res.names, res.values))
     for _again in range(PREDICT_ROUNDS):    # the steps the rests determine at the fit
         if problem.anchoring is None or not problem.predict(fitted):
@@ -194,7 +200,8 @@ def _refit(plan, res, why):
     """Return the fit of the plan's problem again from the values of ``res`` (its nfev added)."""
     again = ScrewParams.from_dict(dict(zip(res.names, res.values)), base=plan.start)
     res2 = ident.fit(plan.problem.residuals, ident.coordinates(plan.names, again, plan.bounds),
-                     hints=why, max_nfev=plan.max_nfev, jac_steps=plan.problem.jac_steps)
+                     hints=why, max_nfev=plan.max_nfev, jac_steps=plan.problem.jac_steps,
+                     exact=plan.problem.exact)
     res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
     return res2
 
@@ -217,7 +224,8 @@ def _misfit(problem, final):
 
 def _reject(res, why):
     """Return ``res`` with every parameter not identifiable for ``why``, at its start."""
-    verdicts = [dataclasses.replace(vd, identified=False, reason=f'not identifiable: {why}')
+    verdicts = [dataclasses.replace(vd, identified=False, exact=False,
+                                    reason=f'not identifiable: {why}')
                 for vd in res.verdicts]
     nan = [float('nan')] * len(res.names)
     return dataclasses.replace(res, values=list(res.initial), verdicts=verdicts, lower=nan,

@@ -19,6 +19,15 @@ from ..io.run_file import PARAMS_RECORD
 #: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
 SIGMA_FLOOR = {'screw_angle': 1e-9, 'nut_position': 1e-12, 'motor_torque': 1e-9}
 
+#: The numerical floor of a signal's noise level relative to its recorded range: the
+#: noise-free re-simulation reproduces a signal to far better (re-simulations of the still
+#: tr12x3 with every fittable parameter moved by 1e-9 relative differ by 1.5e-17 rad RMS),
+#: so a change below it is no information.
+RELATIVE_FLOOR = 1e-9
+
+#: How a noise level is known when it is the numerical floor (exact data).
+FLOOR = 'numerical floor'
+
 
 def fit_names(text):
     """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
@@ -60,8 +69,17 @@ def check_geometry(start, recorded):
 
 
 def measurements(path, data, recorded, torque_only, foreign):
-    """Return (Measurements, {signal: (noise level, how it is known)}) of a recording."""
+    """
+    Return (Measurements, {signal: (noise level, how it is known)}) of a recording.
+
+    A noise level is the sensor's (its noise and quantisation), else the data's
+    estimate; never below the quantisation step / sqrt(12) of a quantising
+    sensor, nor below the numerical floor: :data:`SIGMA_FLOOR` or
+    :data:`RELATIVE_FLOOR` of the signal's range, whichever is larger (then
+    told as :data:`FLOOR`).
+    """
     known = {} if foreign else ident.sensor_sigma(recorded)
+    quanta = {} if foreign else quantisation(recorded)
     signals, sigma, noise = {}, {}, {}
     wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
         ([] if torque_only else ['motor_torque'])
@@ -73,11 +91,24 @@ def measurements(path, data, recorded, torque_only, foreign):
         how = 'sensor parameters'
         if s is None:
             s, how = ident.noise_estimate(y), 'estimated from the data'
-        s = max(s, SIGMA_FLOOR[name])
+        s = max(s, quanta.get(name, 0.0))
+        floor = max(SIGMA_FLOOR[name], RELATIVE_FLOOR * float(np.ptp(y[np.isfinite(y)])))
+        if s <= floor:
+            s, how = floor, FLOOR
         signals[name], sigma[name], noise[name] = y, s, (s, how)
     if not signals:
         raise RunError(f'{path}: no measured joint states to fit against')
     return ident.Measurements(signals, sigma), noise
+
+
+def quantisation(params):
+    """Return the quantisation noise q / sqrt(12) [unit] of each quantising position sensor."""
+    out = {}
+    if params.encoder_counts:
+        out['screw_angle'] = 2.0 * np.pi / params.encoder_counts / np.sqrt(12.0)
+    if params.linear_scale and params.scale_resolution:
+        out['nut_position'] = params.scale_resolution / np.sqrt(12.0)
+    return out
 
 
 class ForeignReplay:

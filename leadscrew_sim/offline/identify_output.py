@@ -3,11 +3,14 @@ The files of ``identify``: the report, the fitted set as a parameter file, the P
 
 A file that cannot be written is a one-line :class:`RunError` naming its option.
 """
+import re
+
 import numpy as np
 
 from .options import RunError
 from ..core import yamlio
 from ..core.params import ScrewParams
+from ..core.presets import preset_names
 
 
 def write_outputs(args, out, text):
@@ -27,7 +30,8 @@ def write_outputs(args, out, text):
     if args.report:
         write_text(args.report, text + '\n', '--report')
     if args.output_params:
-        write_params(args.output_params, out['params'], out['label'], out['res'])
+        write_params(args.output_params, out['params'], out['label'], out['res'],
+                     getattr(args, 'write_all', False))
     if args.plot:
         plot(args.plot, out['problem'], out['initial'], out['final'])
 
@@ -41,41 +45,71 @@ def write_text(path, text, option):
         raise RunError(f'{option} {path}: {exc.strerror or exc}') from None
 
 
-def params_document(params, label, res):
+def params_document(params, label, res, write_all=False):
     """
     Return the parameter file of a fitted set: ``/**: ros__parameters:``, exact floats.
 
-    Every physics parameter but the injected faults (at their defaults) is
-    written, so ``simulate --params`` and the node (whatever its preset)
-    rebuild the very same set; PyYAML writes floats by their shortest repr,
-    which reads back to the same double.
+    By default only the identified values are written, after ``preset: <label>``
+    when the starting values were a preset (so ``simulate --params`` and the
+    node rebuild the starting set with the identified values in it); each fitted
+    parameter left out is named in a comment with why (not identifiable, or the
+    fit was rejected). With ``write_all`` every physics parameter but the
+    injected faults (at their defaults) is written, the ones not identified
+    (their starting values) marked by a comment on their line. PyYAML writes
+    floats by their shortest repr, which reads back to the same double.
 
     Parameters
     ----------
     params : ScrewParams
         The fitted set.
     label : str
-        Where the starting values came from.
+        Where the starting values came from (a preset's name, else a file's).
     res : leadscrew_sim.analysis.identify.fit.FitResult
         The fit (which parameters were identified).
+    write_all : bool
+        Write every value (``--write-all``), not only the identified ones.
 
     """
-    values = {name: getattr(params, name) for name in ScrewParams.names()
-              if not name.startswith('fault_')}
-    doc = {'/**': {'ros__parameters': values}}
-    ident = [f'{n}={getattr(params, n)!r}' for n, vd in zip(res.names, res.verdicts)
-             if vd.identified]
-    kept = [n for n, vd in zip(res.names, res.verdicts) if not vd.identified]
-    head = (f'# leadscrew_sim identify: starting values from {label}; identified: '
-            f'{", ".join(ident) or "none"}')
-    if kept:
-        head += f'; not identifiable (starting values): {", ".join(kept)}'
-    return head + '\n' + yamlio.dump(doc) + '\n'
+    ident = [n for n, vd in zip(res.names, res.verdicts) if vd.identified]
+    kept = {n: vd.reason for n, vd in zip(res.names, res.verdicts) if not vd.identified}
+    head = [f'# leadscrew_sim identify: starting values from {label}; identified: '
+            f'{", ".join(f"{n}={getattr(params, n)!r}" for n in ident) or "none"}']
+    if write_all:
+        values = {name: getattr(params, name) for name in ScrewParams.names()
+                  if not name.startswith('fault_')}
+        if kept:
+            head.append('# every value written; those marked "not identified" are the '
+                        'starting values')
+    else:
+        values = {'preset': label} if label in preset_names() else {}
+        values.update({n: getattr(params, n) for n in ident})
+        head.append('# only the identified values are written' + (
+            f' (over the preset {label})' if values.get('preset') else
+            f' (the other starting values came from {label})'))
+        if kept:
+            head.append('# left out, not identified (write them with --write-all):')
+            head += [f'#   {n}: {" ".join(why.split())}' for n, why in kept.items()]
+    body = yamlio.dump({'/**': {'ros__parameters': values}}).split('\n')
+    if write_all:
+        for i, line in enumerate(body):
+            m = _KEY.match(line)
+            if m and m.group(1) in kept:
+                body[i] = f'{line}  # not identified: {_short(kept[m.group(1)])}'
+    return '\n'.join(head + body) + '\n'
 
 
-def write_params(path, params, label, res):
+#: A parameter's line in the dumped file: its name.
+_KEY = re.compile(r'^    ([A-Za-z_][A-Za-z0-9_]*):')
+
+
+def _short(reason):
+    """Return the kind of a verdict's reason: its text up to the first colon."""
+    return ' '.join(reason.split(':', 1)[0].split())
+
+
+def write_params(path, params, label, res, write_all=False):
     """Write the parameter file of the fitted set (:func:`params_document`)."""
-    write_text(path, params_document(params, label, res), '--output-params')
+    write_text(path, params_document(params, label, res, write_all), '--output-params')
 
 
 def plot(path, problem, initial, final):

@@ -11,8 +11,9 @@ import math
 
 import numpy as np
 
-from .identify_inputs import (check_geometry, ForeignReplay, measured_of_resim,
+from .identify_inputs import (check_geometry, FLOOR, ForeignReplay, measured_of_resim,
                               measurements)
+from .identify_progress import rms_per_signal
 from .options import NS, RunError
 from .replay import Resim
 from ..analysis.identify import fit as ident
@@ -66,6 +67,8 @@ class Problem:
         data = src.measured() if foreign else measured_of_resim(src)
         self.measurements, self.noise = measurements(rec.path, data, recorded,
                                                      self.torque_only, foreign)
+        # exact data: every signal's noise level is the numerical floor (ideal sensors)
+        self.exact = all(how == FLOOR for _s, how in self.noise.values())
         self.n = src.n_steps
         self.slow = 0
         if not (self.torque_only or foreign) and recorded.encoder_counts > 0:
@@ -78,6 +81,8 @@ class Problem:
         if args.restarts == 'on':
             self.restart()
         self.evaluations = 0
+        # the progress on a terminal (FitProgress, None: none), what is fitted, the last misfit
+        self.progress, self.stage, self.misfit = None, 'fit', {}
         self.raised = []
         self.loop_noise = {}
         if not (self.torque_only or foreign) and ident.sensor_sigma(recorded) != \
@@ -200,5 +205,11 @@ class Problem:
         return {k: np.asarray(v)[:len(used)][used[:len(v)]] for k, v in cols.items()}
 
     def residuals(self, values, n=None):
-        """Return the weighted residuals of the first ``n`` steps (all: None)."""
-        return self.measurements.residuals(self.replay(values, n), n)
+        """Return the weighted residuals of the first ``n`` steps (all: None); show progress."""
+        r = self.measurements.residuals(self.replay(values, n), n)
+        if self.progress is not None:
+            if n is None:
+                self.misfit = rms_per_signal(self.measurements.names, r)
+            stage = self.stage if n is None else f'{self.stage}, first {n} of {self.n} steps'
+            self.progress.update(stage, self.evaluations, self.misfit)
+        return r

@@ -229,11 +229,11 @@ def test_backlash_of_a_run_that_never_reverses(tmp_path_factory):
 
 
 def test_params_file_loads_and_reproduces_the_fit(tmp_path_factory, tmp_path):
-    """The parameter file: simulate --params records exactly the fitted doubles."""
+    """The --write-all parameter file: simulate --params records exactly the fitted doubles."""
     rec, out = fitted(tmp_path_factory, 'tr12x3', 'velocity')
     yaml_path, report, png = tmp_path / 'fit.yaml', tmp_path / 'fit.txt', tmp_path / 'fit.png'
     r = cli_ok('identify', rec, '--preset', 'tr12x3', '--fit', FIT, '--output-params',
-               yaml_path, '--report', report, '--plot', png, '-q')
+               yaml_path, '--write-all', '--report', report, '--plot', png, '-q')
     assert r.stdout == ''
     values = read_parameter_file(yaml_path)       # the node's format: <node>: ros__parameters:
     res = out['res']

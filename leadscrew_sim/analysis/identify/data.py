@@ -23,6 +23,13 @@ weighted residuals, in the optimiser's coordinates):
 - collinear: the marginal interval passes the bar but the full one does not:
   the parameter trades off against others (named: the largest correlation),
   and the data fix only a combination.
+
+A parameter is identified only if moving it across its interval changes the
+signals by more than their noise (the weights: never below the quantisation or
+a numerical floor): |J column| times the half-width must exceed 1. Exact data
+(ideal sensors, weights at the floor) have no statistical interval
+(:func:`_exact`): a parameter is "exact data" (fitted, not identified) or not
+identifiable.
 """
 import dataclasses
 import math
@@ -98,7 +105,8 @@ class Verdict:
 
     ``lower``, ``upper``: the 95 % interval [unit of the parameter] (NaN when
     the parameter was not fitted); ``std``: its standard error; ``rel``: the
-    interval's half-width relative to the parameter's size.
+    interval's half-width relative to the parameter's size; ``exact``: seen by
+    exact data, which give no statistical interval (fitted, not identified).
     """
 
     name: str
@@ -108,11 +116,18 @@ class Verdict:
     upper: float = math.nan
     std: float = math.nan
     rel: float = math.nan
+    exact: bool = False
 
     @property
     def status(self):
-        """Return 'identified' or 'not identifiable'."""
-        return 'identified' if self.identified else 'not identifiable'
+        """Return 'identified', 'exact data' or 'not identifiable'."""
+        return 'identified' if self.identified else 'exact data' if self.exact else \
+            'not identifiable'
+
+    @property
+    def fitted(self):
+        """Return whether the fit keeps the parameter free (identified or exact data)."""
+        return self.identified or self.exact
 
 
 def scaled_inverse(a):
@@ -190,7 +205,7 @@ def t_quantile(level, dof):
     return float(t.ppf(0.5 + level / 2.0, dof))
 
 
-def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
+def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
     """
     Return the :class:`Verdict` of each fitted coordinate.
 
@@ -214,9 +229,13 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
         Degrees of freedom of the t quantile.
     hints : dict, optional
         name -> why the data lack what the parameter needs.
+    exact : bool
+        Exact data (ideal sensors): no statistical interval (:func:`_exact`).
 
     """
     hints = hints or {}
+    if exact:
+        return [_exact(c, z[i], jac[:, i], hints) for i, c in enumerate(coords)]
     tq = t_quantile(level, dof)
     jtj = jac.T @ jac
     inv = scaled_inverse(jtj)
@@ -240,6 +259,13 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
                                f'not change with it{hint}', math.nan, math.nan, math.nan,
                                math.inf))
             continue
+        moved = col * (zb - za) / 2.0     # the signals' change across the interval [noise]
+        if rel <= REL_MAX and not moved > 1.0:
+            out.append(Verdict(c.name, False, 'too little sensitivity: moving it across its '
+                               f'interval (+-{100 * rel:.3g} %) changes the re-simulated '
+                               f'signals by {moved:.3g} of their noise, less than 1{hint}',
+                               lower, upper, std, rel))
+            continue
         if rel <= REL_MAX:
             where = ''
             if lo is not None and z[i] <= lo[i] + 1e-9 * max(1.0, abs(lo[i])):
@@ -260,6 +286,22 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None):
                       f'together +-{100 * rel:.3g} %')
         out.append(Verdict(c.name, False, reason, lower, upper, std, rel))
     return out
+
+
+def _exact(c, z, col, hints):
+    """Return the Verdict on exact data: seen if +-REL_MAX moves the signals above the floor."""
+    v = c.to_value(z)
+    size = max(abs(v), c.typical) if not c.log else v
+    dz = REL_MAX * size / c.scale if not c.log else math.log1p(REL_MAX)
+    moved = float(np.linalg.norm(col)) * dz
+    hint = f'; {hints[c.name]}' if c.name in hints else ''
+    if moved > 1.0:
+        return Verdict(c.name, False, 'exact data: no statistical interval; moving it by '
+                       f'+-{100 * REL_MAX:g} % changes the re-simulated signals by '
+                       f'{moved:.3g} times the numerical floor', exact=True)
+    return Verdict(c.name, False, 'no sensitivity: moving it by '
+                   f'+-{100 * REL_MAX:g} % changes the exact re-simulated signals by '
+                   f'{moved:.3g} of the numerical floor, less than 1{hint}', rel=math.inf)
 
 
 def _interval(c, za, zb):

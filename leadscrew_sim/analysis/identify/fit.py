@@ -286,13 +286,13 @@ ANCHOR = 1.0
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
         hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, rescan=False, profile=False,
-        jac_steps=INTERVAL_JAC_STEPS):
+        jac_steps=INTERVAL_JAC_STEPS, exact=False):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 
     A parameter whose verdict is not identifiable keeps its starting value
-    and is fixed there; the others are fitted again without it (at most
-    ``rounds`` fits).
+    and is fixed there (one of exact data stays free); the others are fitted
+    again without it (at most ``rounds`` fits).
 
     Parameters
     ----------
@@ -335,6 +335,9 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         stage (:func:`profiled`).
     jac_steps : tuple of float
         Relative steps in z of the intervals' Jacobian (:func:`.data.interval_jacobian`).
+    exact : bool
+        Exact data (ideal sensors, weights at the numerical floor): verdicts
+        without statistical intervals (:func:`.data.judge`).
 
     """
     t_wall = time.perf_counter()
@@ -355,15 +358,16 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         first = _round == 0
         res, z = _stages(fun, active, z0, opts, horizons if first else None, scan and first,
                          rescan, profile and first)
-        r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints)
+        r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints, exact)
         nfev, message = nfev + counted, res.message
-        if all(v.identified for v in verdicts) or _round == rounds - 1:
+        if all(v.fitted for v in verdicts) or _round == rounds - 1:
             break
-        held.update({c.name: v for c, v in zip(active, verdicts) if not v.identified})
+        held.update({c.name: v for c, v in zip(active, verdicts) if not v.fitted})
         # the others start from where this fit left them
         active = [dataclasses.replace(c, initial=c.to_value(zi))
-                  for c, zi, v in zip(active, z, verdicts) if v.identified]
-    return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints)
+                  for c, zi, v in zip(active, z, verdicts) if v.fitted]
+    return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints,
+                   exact)
 
 
 def _search_options(coords, diff_step, ftol, xtol, max_nfev):
@@ -406,7 +410,7 @@ def _stages(fun, coords, z0, opts, horizons, scan, rescan, profile):
     return res, z
 
 
-def _judged(fun, coords, z, opts, jac_steps, hints):
+def _judged(fun, coords, z, opts, jac_steps, hints, exact):
     """
     Return the whole run's residuals at ``z``, the intervals' Jacobian, the verdicts and nfev.
 
@@ -419,7 +423,7 @@ def _judged(fun, coords, z, opts, jac_steps, hints):
     nfev_after = fun.nfev
     cov, _lag = sandwich(jac, r, fun.shape)
     verdicts = V.judge(coords, z, jac, cov, r, opts.lo, opts.hi, LEVEL,
-                       dof=_dof(r, len(coords)), hints=hints)
+                       dof=_dof(r, len(coords)), hints=hints, exact=exact)
     counted += fun.nfev - nfev_after
     return r, jac, verdicts, counted
 
@@ -436,12 +440,13 @@ def _rms(r, shape):
     return np.sqrt((m ** 2).sum(axis=1) / n)
 
 
-def _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints):
+def _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints,
+            exact):
     """Assemble the FitResult of the last fit, with the held parameters at their start."""
     cov, lag = (sandwich(jac, r, fun.shape) if active else (np.zeros((0, 0)), 0))
     dof = _dof(r, len(active))
-    verdicts = V.judge(active, z, jac, cov, r, None, None, LEVEL, dof=dof, hints=hints) \
-        if active else []
+    verdicts = V.judge(active, z, jac, cov, r, None, None, LEVEL, dof=dof, hints=hints,
+                       exact=exact) if active else []
     final = {c.name: (c, zi, v, i) for i, (c, zi, v) in enumerate(zip(active, z, verdicts))}
     names, values, lower, upper, std, out_verdicts, idx = [], [], [], [], [], [], []
     for c in coords:
@@ -464,7 +469,8 @@ def _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, h
     corr = np.full((len(coords), len(coords)), np.nan)
     if active:
         d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-        c_act = cov / np.outer(d, d)
+        with np.errstate(invalid='ignore'):     # inf / inf: a column without sensitivity
+            c_act = cov / np.outer(d, d)
         for a, ia in enumerate(idx):
             for b, ib in enumerate(idx):
                 if ia is not None and ib is not None:
