@@ -7,21 +7,36 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := $(CURDIR)/.venv
 VPY := $(VENV)/bin/python
 STAMP := $(VENV)/.leadscrew_sim_setup
-ENV := AMENT_PREFIX_PATH=$(VENV) NUMBA_CACHE_DIR=$(VENV)/numba_cache ROS_LOG_DIR=$(CURDIR)/.ros_log
+# The executables live in .venv/lib/leadscrew_sim (for ros2 run); links in .venv/bin
+# put them on the PATH of `source .venv/bin/activate`.
+LINKS := $(VENV)/bin/leadscrew_sim $(VENV)/bin/leadscrew_sim_node
+# numba's cache is the package's own (~/.cache/leadscrew_sim/numba, or $NUMBA_CACHE_DIR when
+# set), the same for make, the venv's commands and ros2 run.
+ENV := AMENT_PREFIX_PATH=$(VENV) ROS_LOG_DIR=$(CURDIR)/.ros_log
 PRESET ?= default
 DURATION ?= 0
 
 .PHONY: setup run test bench clean
 
-setup: $(STAMP)
+setup: $(STAMP) $(LINKS)
 
 $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
+	@echo "setup 1/4: the virtual environment $(VENV)"
 	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install --quiet --disable-pip-version-check --upgrade pip==24.3.1
-	$(VPY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -c constraints.txt
-	$(VPY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@$(VPY) -m pip install --quiet --disable-pip-version-check --upgrade pip==24.3.1
+	@echo "setup 2/4: the pinned wheels from PyPI (rclpy, numpy, scipy, numba, mcap, dask, ...; about a minute)"
+	@set -o pipefail; $(VPY) -m pip install --disable-pip-version-check --progress-bar off \
+		-r requirements.txt -c constraints.txt 2>&1 \
+		| awk '/^(Collecting|Successfully installed|ERROR)/ { print "  " $$0; fflush() }'
+	@echo "setup 3/4: leadscrew_sim into the environment"
+	@$(VPY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@echo "setup 4/4: the compiled kernel (compiled once into numba's cache, about 30 s; then loaded)"
+	@$(ENV) $(VPY) -c "from leadscrew_sim.core.warmup import kernel_ready; kernel_ready(lambda t: print('  ' + t))"
 	@touch $(STAMP)
 	@echo "setup done: $(VENV)"
+
+$(LINKS): | $(STAMP)
+	ln -sfn ../lib/leadscrew_sim/$(notdir $@) $@
 
 run: setup
 	$(ENV) $(VPY) -m leadscrew_sim.ros.demo --preset $(PRESET) --duration $(DURATION)

@@ -48,6 +48,7 @@ from ..core.delivery import StateDelivery
 from ..core.drive_modes import FAULT_NAMES
 from ..core.faults import SimulationFault
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
+from ..core.warmup import kernel_ready
 from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
@@ -87,7 +88,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         self.dt_ns = int(round(NS / s.update_rate))
         self._spin_budget_ns = max(100_000, self.dt_ns // 4)
         self.model = self._make_model()
-        LeadScrewModel(self.params, dt=self.dt_ns / NS).advance(0.0)   # JIT warm-up
+        kernel_ready(self.get_logger().info, self.params)   # every entry point, logged
         self.mode = s.clock_mode
         self.t0_ns = self.get_clock().now().nanoseconds if self.mode == 'realtime' else 0
         self.n = 0                         # steps taken; stamp = t0 + n dt

@@ -120,7 +120,6 @@ def launch_env(*prefixes):
     env['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.pop('ROS_LOCALHOST_ONLY', None)
-    env.setdefault('NUMBA_CACHE_DIR', str(Path(sys.prefix) / 'numba_cache'))
     env['PYTHONUNBUFFERED'] = '1'
     # As in a shell with the venv activated (xacro is a script in its bin/).
     env['PATH'] = os.pathsep.join([str(Path(sys.prefix) / 'bin'), env.get('PATH', '')])

@@ -7,6 +7,10 @@ friction, lcp and kernel decorate all their compiled functions with
 import hashlib
 import os
 
+from .cache import use_cache_dir
+
+use_cache_dir()      # before numba reads its configuration
+
 try:  # numba is the accelerator (see README, "Why numba"); plain Python also works.
     from numba import njit
 except ImportError:  # pragma: no cover
