@@ -25,11 +25,8 @@ weighted residuals, in the optimiser's coordinates):
   and the data fix only a combination.
 
 A parameter is identified only if moving it across its interval changes the
-signals by more than their noise (the weights: never below the quantisation or
-a numerical floor): |J column| times the half-width must exceed 1. Exact data
-(ideal sensors, weights at the floor) have no statistical interval
-(:func:`_exact`): a parameter is "exact data" (fitted, not identified) or not
-identifiable.
+signals by more than their noise (|J column| x half-width > 1); exact data
+(weights at the numerical floor) have no interval (:func:`_exact`).
 """
 import dataclasses
 import math
@@ -261,10 +258,7 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
             continue
         moved = col * (zb - za) / 2.0     # the signals' change across the interval [noise]
         if rel <= REL_MAX and not moved > 1.0:
-            out.append(Verdict(c.name, False, 'too little sensitivity: moving it across its '
-                               f'interval (+-{100 * rel:.3g} %) changes the re-simulated '
-                               f'signals by {moved:.3g} of their noise, less than 1{hint}',
-                               lower, upper, std, rel))
+            out.append(_unseen(c.name, rel, moved, hint, lower, upper, std))
             continue
         if rel <= REL_MAX:
             where = ''
@@ -288,20 +282,26 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
     return out
 
 
+def _unseen(name, rel, moved, hint, lower, upper, std):
+    """Return the Verdict of an interval across which the signals move less than the noise."""
+    return Verdict(name, False, f'too little sensitivity: moving it across its interval (+-'
+                   f'{100 * rel:.3g} %) changes the re-simulated signals by {moved:.3g} of their '
+                   f'noise, less than 1{hint}', lower, upper, std, rel)
+
+
 def _exact(c, z, col, hints):
     """Return the Verdict on exact data: seen if +-REL_MAX moves the signals above the floor."""
-    v = c.to_value(z)
-    size = max(abs(v), c.typical) if not c.log else v
-    dz = REL_MAX * size / c.scale if not c.log else math.log1p(REL_MAX)
+    size = max(abs(c.to_value(z)), c.typical)
+    dz = math.log1p(REL_MAX) if c.log else REL_MAX * size / c.scale
     moved = float(np.linalg.norm(col)) * dz
-    hint = f'; {hints[c.name]}' if c.name in hints else ''
     if moved > 1.0:
         return Verdict(c.name, False, 'exact data: no statistical interval; moving it by '
                        f'+-{100 * REL_MAX:g} % changes the re-simulated signals by '
                        f'{moved:.3g} times the numerical floor', exact=True)
     return Verdict(c.name, False, 'no sensitivity: moving it by '
                    f'+-{100 * REL_MAX:g} % changes the exact re-simulated signals by '
-                   f'{moved:.3g} of the numerical floor, less than 1{hint}', rel=math.inf)
+                   f'{moved:.3g} of the numerical floor, less than 1'
+                   + (f'; {hints[c.name]}' if c.name in hints else ''), rel=math.inf)
 
 
 def _interval(c, za, zb):

@@ -290,9 +290,9 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 
-    A parameter whose verdict is not identifiable keeps its starting value
-    and is fixed there (one of exact data stays free); the others are fitted
-    again without it (at most ``rounds`` fits).
+    A parameter whose verdict is not identifiable (exact data: free) keeps its
+    starting value and is fixed there; the others are fitted again without it
+    (at most ``rounds`` fits).
 
     Parameters
     ----------
@@ -336,14 +336,11 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
     jac_steps : tuple of float
         Relative steps in z of the intervals' Jacobian (:func:`.data.interval_jacobian`).
     exact : bool
-        Exact data (ideal sensors, weights at the numerical floor): verdicts
-        without statistical intervals (:func:`.data.judge`).
+        Exact data (weights at the numerical floor): no intervals (:func:`.data.judge`).
 
     """
     t_wall = time.perf_counter()
-    fixed = dict(fixed or {})
-    active = list(coords)
-    start = {c.name: c.initial for c in coords}
+    fixed, active, start = dict(fixed or {}), list(coords), {c.name: c.initial for c in coords}
     held = {}                    # name -> Verdict of the parameters fixed at their start
     nfev, message, rms0 = 0, '', None
     for _round in range(rounds):
@@ -363,11 +360,10 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         if all(v.fitted for v in verdicts) or _round == rounds - 1:
             break
         held.update({c.name: v for c, v in zip(active, verdicts) if not v.fitted})
-        # the others start from where this fit left them
-        active = [dataclasses.replace(c, initial=c.to_value(zi))
+        active = [dataclasses.replace(c, initial=c.to_value(zi))    # from where they were
                   for c, zi, v in zip(active, z, verdicts) if v.fitted]
-    return _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints,
-                   exact)
+    return _result(coords, active, z, jac, r, fun, held, (nfev, t_wall, message, rms0),
+                   hints, exact)
 
 
 def _search_options(coords, diff_step, ftol, xtol, max_nfev):
@@ -440,9 +436,9 @@ def _rms(r, shape):
     return np.sqrt((m ** 2).sum(axis=1) / n)
 
 
-def _result(coords, active, z, jac, r, fun, held, nfev, t_wall, message, rms0, hints,
-            exact):
+def _result(coords, active, z, jac, r, fun, held, run, hints, exact):
     """Assemble the FitResult of the last fit, with the held parameters at their start."""
+    nfev, t_wall, message, rms0 = run
     cov, lag = (sandwich(jac, r, fun.shape) if active else (np.zeros((0, 0)), 0))
     dof = _dof(r, len(active))
     verdicts = V.judge(active, z, jac, cov, r, None, None, LEVEL, dof=dof, hints=hints,
