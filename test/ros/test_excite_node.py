@@ -14,6 +14,7 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
+import time
 
 from helpers import cli, cli_ok, NS
 from leadscrew_sim import load_preset
@@ -30,6 +31,11 @@ import yaml
 #: thread's stiction (as in test_drive_node); the vertical load keeps the nut on
 #: one flank, so the backlash does not add.
 POSITION_TOLERANCE = 10e-6
+
+#: Wait between the exciter's exit and the node's stop [s]: the last commands are
+#: acknowledged by the node's DDS reader, and taken (and recorded) at its next ticks;
+#: on a loaded host a tick can be late by a good part of a second.
+DRAIN_S = 1.0
 
 
 def excite(tmp_path, *args, timeout=60):
@@ -79,6 +85,7 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     r, sent = excite(tmp_path, 'iso230', *opts, '--command-rate', 100, '--wait-timeout', 60)
     assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
     assert 'excite: done' in r.stdout
+    time.sleep(DRAIN_S)         # the node takes the last commands at its next ticks
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
     rec = read(recording(tmp_path, 'ex'), ('/position_command', '/joint_states'))
 
@@ -134,6 +141,7 @@ def test_breakaway_in_a_namespace_through_joint_commands_stops_once_the_nut_move
                      '--prefix', 'z_', '--wait-timeout', 60)
     assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
     assert 'no nut_position received' not in r.stdout, r.stdout
+    time.sleep(DRAIN_S)         # the node takes the last commands at its next ticks
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
     rec = read(recording(tmp_path, 'ex'), ('/ax1/joint_commands', '/ax1/joint_states'))
     cmds = rec['/ax1/joint_commands']
@@ -216,6 +224,7 @@ def test_the_node_recording_of_an_excite_run_identifies(run_exe, tmp_path):
     r, sent = excite(tmp_path, 'reversals', '--opt', 'cycles=3', '--command-rate', 100,
                      '--wait-timeout', 60)
     assert r.returncode == 0 and 'Traceback' not in r.stderr, r.stdout + r.stderr
+    time.sleep(DRAIN_S)         # the node takes the last commands at its next ticks
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
     path = recording(tmp_path, 'ex')
     out = tmp_path / 'fit.yaml'
