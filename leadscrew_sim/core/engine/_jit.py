@@ -39,9 +39,10 @@ JIT_OPTIONS = dict(cache=True, error_model='numpy', fastmath=False, _nrt=False, 
 DISPATCHERS = []
 
 #: The modules whose source the compiled code depends on: their own functions, and the
-#: constants of layout and drive that numba freezes into the code of every user.
+#: constants of layout, drive and the core's drive_modes that numba freezes into the code
+#: of every user.
 KERNEL_SOURCES = ('_jit.py', 'layout.py', 'drive.py', 'friction.py', 'lcp.py', 'sensors.py',
-                  'kernel.py')
+                  'kernel.py', os.path.join('..', 'drive_modes.py'))
 
 #: File beside numba's cache entries holding the digest of KERNEL_SOURCES they came from.
 DIGEST_FILE = 'leadscrew_sim_kernel.sha256'
