@@ -111,7 +111,7 @@ def drive_rate(params, rows, dt=1e-3, block=1000, repeats=3):
     m = LeadScrewModel(params, dt=dt)
     n = len(rows)
     sim_seconds = n * dt
-    q_rows = m._command_rows(rows)             # q sense, as model.command stores them
+    q_rows = D.command_rows(rows, params.hand_sign)   # q sense, as model.command stores them
     targets = list(zip(q_rows[:, 1].tolist(), q_rows[:, 2].tolist()))
     m.run(None, commands=rows[:2])             # compile, warm up both paths
     K.step_held(m._P, m.state, m.out, 0.0, dt, m.nsub, m._wk, m._iwk)
