@@ -7,7 +7,7 @@ bit for bit, however the work was distributed: every case runs the same code
 on its own model, and the model is deterministic.
 
 numba's on-disk cache is not safe against several processes compiling and
-writing the same entries at once (numba issue 4807), so the parent warms the
+writing the same entries at once (numba's GitHub #4807), so the parent warms the
 kernel before it starts any local worker: it compiles (or loads) and caches
 every function a case uses, and the workers never write the cache. Local
 workers are forked from the warmed parent where the platform has fork and
