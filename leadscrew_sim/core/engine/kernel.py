@@ -32,11 +32,14 @@ import numpy as np
 from ._jit import kernel_jit, refresh_cache
 from .drive import FAULT_INJECTED, FAULT_NONE, MODE_TORQUE, update_period
 from .sensors import sample
+from .impulses import friction_impulses
 from .stages import (
-    body_constants, drive_constants, drive_outputs, drive_update, energy_sums,
-    friction_impulses, friction_setup, held_command, inverse_masses, load_drive, load_state,
-    sensor_outputs, smooth_forces, store_drive, store_state, switch_states, take_command,
-    thread_outputs, torque_path,
+    body_constants, drive_constants, drive_update, friction_setup, held_command,
+    inverse_masses, load_drive, load_state, smooth_forces, take_command, torque_path,
+)
+from .write_back import (
+    drive_outputs, energy_sums, sensor_outputs, store_drive, store_state, switch_states,
+    thread_outputs,
 )
 from .layout import (
     NO, N_CMD,
