@@ -83,3 +83,13 @@ def test_package_xml_parses_like_colcon():
     for d in ('rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs',
               'rosgraph_msgs', 'std_srvs', 'python3-numpy', 'python3-scipy'):
         assert d in deps
+
+
+def test_every_module_is_installed(install_prefix):
+    """Each .py file under leadscrew_sim/ in the source tree lands in site-packages."""
+    site = next(install_prefix.glob('lib/python3*/site-packages'))
+    source = sorted(p.relative_to(REPO).as_posix()
+                    for p in (REPO / 'leadscrew_sim').rglob('*.py')
+                    if '__pycache__' not in p.parts)
+    missing = [rel for rel in source if not (site / rel).is_file()]
+    assert source and not missing, f'not installed: {missing}'

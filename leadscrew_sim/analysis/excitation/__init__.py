@@ -1,0 +1,1 @@
+"""Excitation profiles: the command sequences `excite` sends, with defaults from the axis."""

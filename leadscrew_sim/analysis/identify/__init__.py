@@ -1,0 +1,1 @@
+"""Identification: fit model parameters to recorded motion (cost, search, steps, bootstrap)."""

@@ -1,0 +1,1 @@
+"""The compiled engine: numba kernel, its stages and state layout. Read only through the model."""
