@@ -1,0 +1,59 @@
+"""
+A frequency response as every source returns it: frequencies, complex gain, coherence, amplitude.
+
+The linear model, a simulated measurement and a recording all give one
+:class:`FrequencyResponse` per amplitude (the linear model and a recording
+have a single one, with ``amplitude`` NaN for the linear model).
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ['FrequencyResponse']
+
+
+@dataclass
+class FrequencyResponse:
+    """
+    H(f) from ``input`` to ``output`` (or a loop quantity), one row per frequency.
+
+    Attributes
+    ----------
+    frequency : ndarray
+        [Hz], increasing.
+    response : ndarray of complex
+        Output over input, in the units of the two signals (SI).
+    coherence : ndarray
+        In [0, 1]; NaN where the source has none (the linear model).
+    amplitude : float
+        The input amplitude in the input's SI unit; NaN for the linear model.
+    input, output : str
+        The signal names of interfaces.md (``torque``, ``motor_velocity``, ...),
+        or for a loop quantity ``input='velocity_loop'`` and ``output`` one of
+        ``L``, ``S``, ``T``.
+    source : str
+        ``linear``, ``sine``, ``chirp``, ``multisine`` or ``recording``.
+    notes : list of str
+        What the figures rest on (the hold and sampling of a discretised model,
+        the settling periods discarded, the Welch segments), for the summary.
+    """
+
+    frequency: np.ndarray
+    response: np.ndarray
+    coherence: np.ndarray
+    amplitude: float
+    input: str
+    output: str
+    source: str
+    notes: list = field(default_factory=list)
+
+    @property
+    def magnitude_db(self):
+        """20 log10 |H| [dB]."""
+        with np.errstate(divide='ignore'):
+            return 20.0 * np.log10(np.abs(self.response))
+
+    @property
+    def phase_deg(self):
+        """Phase of H, unwrapped along frequency [deg]."""
+        return np.degrees(np.unwrap(np.angle(self.response)))
