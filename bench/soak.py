@@ -3,7 +3,7 @@ Soak the node: realtime 1 kHz, position mode, noisy late sensors, injected fault
 
 Run (not in CI; about an hour and 1.2 GB of recordings in a new /tmp/soak_* directory):
 
-    AMENT_PREFIX_PATH=.venv NUMBA_CACHE_DIR=.venv/numba_cache ROS_DOMAIN_ID=151 \
+    AMENT_PREFIX_PATH=.venv ROS_DOMAIN_ID=151 \
         .venv/bin/python bench/soak.py --duration 3600 --split 300 --fault-period 180
 
 (ROS_DOMAIN_ID 77 if unset; discovery is limited to this host.) The node (preset
