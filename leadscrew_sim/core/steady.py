@@ -44,6 +44,9 @@ def place_sliding(model, op, stuck=False, velocity_factor=1.0):
     s[L.S_XA] = P[L.P_RT] * q0 + op['delta0']
     s[L.S_VA] = rate * P[L.P_RT]
     s[L.S_XB] = s[L.S_XA]
+    if len(op.get('deltas', ())) == 2:        # a split nut's half B on its own flank
+        s[L.S_XB] = P[L.P_RT] * q0 + op['deltas'][1]
+        s[L.S_VB] = s[L.S_VA]
     s[L.S_TE] = s[L.S_DTOUT] = op['torque']
     s[L.S_FAPREV] = op['Fa0']
     s[L.S_EQ], s[L.S_EW] = s[L.S_QM], s[L.S_WM]
