@@ -19,7 +19,8 @@ from ..offline.options import (check_finite, DEFAULT_PRESET, load_params, parse_
                                parse_sets, RunError)
 from ..analysis.excitation.profiles import make_profile, PROFILES
 
-HELP = 'publish an identification profile as commands (breakaway, sweep, reversals, iso230)'
+HELP = ('publish an identification profile as commands (breakaway, sweep, reversals, iso230, '
+        'chirp, multisine)')
 
 
 def add_arguments(p):
@@ -33,8 +34,9 @@ def add_arguments(p):
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
                    help='override an axis parameter (repeatable; YAML scalar in the '
                    'parameter\'s unit)')
-    p.add_argument('--command-rate', dest='rate', type=float, default=100.0, metavar='HZ',
-                   help='commands per second [Hz] (default 100)')
+    p.add_argument('--command-rate', dest='rate', type=float, metavar='HZ',
+                   help='commands per second [Hz] (default 100; chirp, multisine: 10 fmax '
+                   'within [100, 1000] Hz)')
     add_deprecated_alias(p, '--rate', '--command-rate', 'rate', float)
     p.add_argument('--namespace', default='', help='namespace of the axis\' topics')
     p.add_argument('--joint-commands', action='store_true',
@@ -67,7 +69,13 @@ def run(args):
     if not args.name:
         raise RunError(f'give a profile NAME ({", ".join(PROFILES)}) or --list')
     profile = make_profile(args.name, params, **options)
+    if args.rate is None:
+        args.rate = getattr(profile, 'command_rate', 100.0)
     check_finite('--command-rate', args.rate)
+    if args.rate < getattr(profile, 'min_command_rate', 0.0):
+        raise RunError(f'--command-rate {args.rate:g} Hz is below 2.5 fmax = '
+                       f'{profile.min_command_rate:g} Hz of the {profile.name}: raise it or '
+                       'lower --opt fmax')
     if not 0.1 <= args.rate <= 10000.0:
         raise RunError(f'--command-rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
     if not (math.isfinite(args.wait_timeout) and args.wait_timeout >= 0.0):

@@ -194,7 +194,7 @@ def test_list_and_dry_run_print_the_profiles_without_ros():
 @pytest.mark.parametrize('args, fragment', [
     (('iso230', '--opt', 'travel=5'), "excitation 'iso230': option 'travel' = 5.0 m"),
     (('sweep', '--opt', 'levels'), "--opt 'levels': expected name=value"),
-    (('chirp',), "unknown excitation profile 'chirp'"),
+    (('prbs',), "unknown excitation profile 'prbs'"),
     ((), 'give a profile NAME'),
     (('sweep', '--command-rate', 'nan'), '--command-rate nan is not a finite number'),
     (('sweep', '--prefix', 'z_'), '--prefix names joints: it needs --joint-commands'),

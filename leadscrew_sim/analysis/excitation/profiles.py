@@ -452,6 +452,9 @@ class Iso230(Profile):
 #: Profile name -> class.
 PROFILES = {cls.name: cls for cls in (BreakawayRamp, SpeedSweep, Reversals, Iso230)}
 
+from .broadband import BROADBAND  # noqa: E402 (it imports static_breakaway from here)
+PROFILES.update(BROADBAND)
+
 
 def make_profile(name, params, **options):
     """
