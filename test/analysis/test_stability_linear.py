@@ -214,14 +214,12 @@ def test_mode_coupling_onset():
 
 
 def test_refusals():
-    """A zero speed, an unknown drive and a split nut are refused with the parameter named."""
+    """A zero speed and an unknown drive are refused with the parameter named."""
     p = ScrewParams()
     with pytest.raises(ValueError, match='speed'):
         linear_stability(p, 0.0)
     with pytest.raises(ValueError, match='drive'):
         linear_stability(p, 1e-3, 'torque')
-    with pytest.raises(ValueError, match='anti_backlash'):
-        linear_stability(ScrewParams(anti_backlash=True, preload_force=10.0), 1e-3)
 
 
 def test_velocity_loop_threshold_rigid_coupling():

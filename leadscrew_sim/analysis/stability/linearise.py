@@ -5,7 +5,9 @@ Coordinates (q sense, perturbations about :func:`.operating_point.operating_poin
 y = [q_m, q, x] with a compliant coupling under the velocity drive, [q, x]
 with a rigid coupling (motor and screw one body) or a compliant one under the
 ideal drive (q_m prescribed), [x] for the ideal drive with a rigid coupling
-(the screw then prescribed). The contact stays on the loaded flank:
+(the screw then prescribed); a split nut adds half-nut B's x_b, joined to x
+by the preload spring k_p, each half on its own loaded flank. The contact
+stays on the loaded flank:
 dN = -(k d(delta) + c d(delta)') / cos(lambda); friction
 dF_f = -s (mu'0 sigma dN + |N0| (dmu'/dv) dv_s); the collar torque follows
 |F_a|, the guide and bearing Coulomb terms are constant while sliding.
@@ -28,63 +30,82 @@ __all__ = ['eigenvalues', 'state_matrix']
 
 
 def _coordinates(op, params):
-    """Return (names, index of q_m or None, index of q or None, index of x)."""
+    """Return (names, index of q_m or None, index of q or None, indices of the nut bodies)."""
     names = []
     if op['drive'] == 'velocity' and not op['rigid']:
         names.append('q_m')
     if op['drive'] == 'velocity' or not op['rigid']:
         names.append('q')
     names.append('x')
+    if params.anti_backlash:
+        names.append('x_b')
     idx = {n: i for i, n in enumerate(names)}
-    return names, idx.get('q_m'), idx.get('q'), idx['x']
+    return names, idx.get('q_m'), idx.get('q'), [idx[n] for n in ('x', 'x_b') if n in idx]
 
 
-def _mechanics(op, params, slope):
-    """Return (M, K, C, iq_m, iq, ix): M y'' + C y' + K y = (torque input), drive aside."""
-    p = params
-    names, im, iq, ix = _coordinates(op, params)
-    n = len(names)
+def _thread(op, p, iq, ix, n, n_abs, sigma, slope):
+    """Return the gradients over z = [y, y'] of (N, F_f) of one nut body's thread."""
     lam = p.lead_angle
     sl, cl = math.sin(lam), math.cos(lam)
-    rt, rm = p.lead_ratio, p.r_m
-    s, sigma, n_abs = op['s'], op['sigma'], abs(op['N0'])
-    # gradients over z = [y, y'] (length 2n)
     g_delta = np.zeros(2 * n)
     g_delta[ix] = 1.0
-    g_delta[n + ix] = 0.0
     if iq is not None:
-        g_delta[iq] = -rt
+        g_delta[iq] = -p.lead_ratio
     g_ddelta = np.roll(g_delta, n)          # d(delta)' has the same weights on y'
     g_n = -(p.contact_stiffness * g_delta + p.contact_damping * g_ddelta) / cl
     g_vs = np.zeros(2 * n)
     g_vs[n + ix] = sl
     if iq is not None:
-        g_vs[n + iq] = rm * cl
-    g_f = -s * (op['mu0'] * sigma * g_n + n_abs * slope * g_vs)
-    g_fa = cl * g_n + sl * g_f
+        g_vs[n + iq] = p.r_m * cl
+    return g_n, -op['s'] * (op['mu0'] * sigma * g_n + n_abs * slope * g_vs)
+
+
+def _mechanics(op, params, slope):
+    """Return (masses, F, iq_m, iq, nut indices): M y'' = F z, drive aside."""
+    p = params
+    names, im, iq, nuts = _coordinates(op, params)
+    n = len(names)
+    lam = p.lead_angle
+    sl, cl = math.sin(lam), math.cos(lam)
     f = np.zeros((n, 2 * n))                # generalised forces, linear in z
-    f[ix] = g_fa
-    f[ix, n + ix] -= p.guide_viscous
     mass = np.zeros(n)
-    mass[ix] = p.nut_mass + p.payload_mass
+    g_fa = np.zeros(2 * n)                  # the axial force of both threads
+    for ix, (sigma, n_abs), m in zip(nuts, op['nuts'],
+                                     (p.nut_mass + p.payload_mass, p.second_nut_mass)):
+        g_n, g_f = _thread(op, p, iq, ix, n, n_abs, sigma, slope)
+        f[ix] += cl * g_n + sl * g_f
+        g_fa += cl * g_n + sl * g_f
+        mass[ix] = m
+        if iq is not None:
+            f[iq] += p.r_m * (-sl * g_n + cl * g_f)
+    f[nuts[0], n + nuts[0]] -= p.guide_viscous
+    if len(nuts) == 2:                      # preload spring: F_s on B, -F_s on A
+        g_s = np.zeros(2 * n)
+        g_s[nuts[1]], g_s[nuts[0]] = -p.preload_stiffness, p.preload_stiffness
+        f[nuts[1]] += g_s
+        f[nuts[0]] -= g_s
     if iq is not None:
-        f[iq] = rm * (-sl * g_n + cl * g_f)
-        f[iq] -= p.collar_mu * p.collar_radius * s * math.copysign(1.0, op['Fa0']) * g_fa
+        f[iq] -= p.collar_mu * p.collar_radius * op['s'] * math.copysign(1.0, op['Fa0']) * g_fa
         f[iq, n + iq] -= p.bearing_viscous
         mass[iq] = p.screw_inertia + (p.motor_inertia if op['rigid'] else 0.0)
         if not op['rigid']:
-            kc, cc = p.coupling_stiffness, p.coupling_damping
-            f[iq, iq] -= kc
-            f[iq, n + iq] -= cc
-            if im is not None:
-                f[iq, im] += kc
-                f[iq, n + im] += cc
-                f[im, im] -= kc
-                f[im, iq] += kc
-                f[im, n + im] -= cc
-                f[im, n + iq] += cc
-                mass[im] = p.motor_inertia
-    return mass, f, im, iq, ix
+            _coupling(f, mass, p, im, iq, n)
+    return mass, f, im, iq, nuts
+
+
+def _coupling(f, mass, p, im, iq, n):
+    """Add the compliant coupling's forces (and the rotor's inertia, when a state) in place."""
+    kc, cc = p.coupling_stiffness, p.coupling_damping
+    f[iq, iq] -= kc
+    f[iq, n + iq] -= cc
+    if im is not None:
+        f[iq, im] += kc
+        f[iq, n + im] += cc
+        f[im, im] -= kc
+        f[im, iq] += kc
+        f[im, n + im] -= cc
+        f[im, n + iq] += cc
+        mass[im] = p.motor_inertia
 
 
 def state_matrix(op, params, slope=None):
@@ -107,7 +128,7 @@ def state_matrix(op, params, slope=None):
     """
     p = params
     slope = op['slope'] if slope is None else slope
-    mass, f, im, iq, ix = _mechanics(op, params, slope)
+    mass, f, im, iq, nuts = _mechanics(op, params, slope)
     n = len(mass)
     velocity = op['drive'] == 'velocity'
     extra = []
@@ -145,7 +166,7 @@ def state_matrix(op, params, slope=None):
         else:
             a[n + jm] += t_u / mass[jm]
         translation = np.zeros(nx)
-        translation[ix] = p.lead_ratio
+        translation[nuts] = p.lead_ratio
         translation[iq] = 1.0
         if im is not None:
             translation[im] = 1.0

@@ -10,7 +10,10 @@ screw's torque balance gives the coupling twist and the motor torque; with
 the servo drive in velocity mode that torque is the integral term of its PI
 loop (or, without an integral, the proportional term of a raised reference).
 
-Only the single nut is handled: an anti-backlash (split) nut is refused.
+With an anti-backlash (split) nut both halves slide at v, each on the flank
+its own axial load picks: nut A carries W plus the preload spring's force
+F_s, half-nut B its weight less F_s, where F_s = F_p + k_p (b - (x_B - x_A))
+follows from the two contact deflections (:func:`_split_nut`).
 """
 import math
 
@@ -65,6 +68,57 @@ def _drive_state(p, drive, v, omega, torque):
     return w_ref, integral
 
 
+def _flank(load, s, mu0, lam, v):
+    """
+    Return (sigma, |N0| [N]) of a nut body whose thread supplies ``load`` [N] along +x.
+
+    sigma = +1: the leading flank carries it, -1 the trailing one; |N0| =
+    |W| / (cos(lambda) - sigma s mu' sin(lambda)) while sliding in direction s.
+    """
+    sigma = 1.0 if load > 0.0 else -1.0
+    den = math.cos(lam) - sigma * s * mu0 * math.sin(lam)
+    if den <= 0.0:
+        raise ParameterError('mu_k', f"mu' tan(lambda) = {mu0 * math.tan(lam):.3g} >= 1 at "
+                             f'{v!r} m/s: the thread jams')
+    return sigma, abs(load) / den
+
+
+def _split_nut(p, load, s, mu0, v):
+    """
+    Return (((sigma_A, |N_A|), (sigma_B, |N_B|)), F_s [N]) of a split nut sliding steadily.
+
+    Nut A's thread supplies W_A = load + F_s, half-nut B's W_B = m_b g
+    sin(beta) - F_s. With the flanks fixed, F_s = F_p + k_p (b - (delta_B -
+    delta_A)), delta_i = -sigma_i (b/2 + |N_i| cos(lambda) / k) and |N_i| =
+    sigma_i W_i / d_i are linear in F_s: solved exactly; the flanks start from
+    F_s = F_p and are updated until they agree with the loads.
+    """
+    lam = p.lead_angle
+    cl, sl = math.cos(lam), math.sin(lam)
+    kp, b = p.preload_stiffness, p.backlash
+    load_b = p.second_nut_mass * p.gravity * math.sin(p.inclination)
+    c = kp * cl / p.contact_stiffness
+    f_s = p.preload_force
+    for _ in range(4):
+        sa = 1.0 if load + f_s > 0.0 else -1.0
+        sb = 1.0 if load_b - f_s > 0.0 else -1.0
+        da, db = cl - sa * s * mu0 * sl, cl - sb * s * mu0 * sl
+        if min(da, db) <= 0.0:
+            raise ParameterError('mu_k', f"mu' tan(lambda) = {mu0 * math.tan(lam):.3g} >= 1 "
+                                 f'at {v!r} m/s: the thread jams')
+        f_s = ((p.preload_force + kp * b - kp * (sa - sb) * b / 2.0
+                - c * (load / da - load_b / db)) / (1.0 + c * (1.0 / da + 1.0 / db)))
+        if (load + f_s > 0.0) == (sa > 0.0) and (load_b - f_s > 0.0) == (sb > 0.0):
+            break
+    else:
+        raise ParameterError('preload_force', f'{p.preload_force!r} N: no steady sliding of '
+                             f'the split nut at {v!r} m/s (its flanks do not settle)')
+    if load + f_s == 0.0 or load_b - f_s == 0.0:
+        raise ParameterError('speed', f'{v!r} m/s leaves a half-nut unloaded: it floats in '
+                             'the backlash')
+    return ((sa, abs(load + f_s) / da), (sb, abs(load_b - f_s) / db)), f_s
+
+
 def operating_point(params, speed, drive='velocity'):
     """
     Return the steady sliding state of the axis at nut speed ``speed``, q sense.
@@ -86,12 +140,15 @@ def operating_point(params, speed, drive='velocity'):
         -1 trailing), vs0 [m/s], mu0 [-], slope (dmu'/dv [s/m]), load W [N],
         N0 (signed normal force [N]), Fa0 (axial thread force [N]), torque
         (motor torque [N m], q sense), twist (q_m - q [rad]), delta0 (x - r_t q
-        [m]), G, J_e [kg m^2] and the drive's w_ref [rad/s] and integral [rad].
+        [m]), G, J_e [kg m^2] and the drive's w_ref [rad/s] and integral [rad];
+        of nut A, and half-nut B with a split nut: nuts ((sigma, |N0| [N]) each),
+        deltas (each x - r_t q [m]) and spring (the preload force F_s [N], 0
+        for a single nut).
 
     Raises
     ------
     ParameterError
-        For a zero speed, an unknown drive, a split nut, an unloaded thread, a
+        For a zero speed, an unknown drive, an unloaded thread, a
         torque beyond max_torque or (velocity drive) a reference beyond
         velocity_limit.
 
@@ -102,9 +159,6 @@ def operating_point(params, speed, drive='velocity'):
         raise ParameterError('speed', f'{speed!r} m/s must be nonzero and finite')
     if drive not in DRIVES:
         raise ParameterError('drive', f'{drive!r} is not one of {", ".join(DRIVES)}')
-    if p.anti_backlash:
-        raise ParameterError('anti_backlash', 'true: the stability analysis handles the '
-                             'single nut only (set it false)')
     law = FrictionLaw(p)
     lam = p.lead_angle
     sl, cl, tl = math.sin(lam), math.cos(lam), math.tan(lam)
@@ -113,22 +167,17 @@ def operating_point(params, speed, drive='velocity'):
     omega = v / rt
     vs0 = v / sl
     mu0 = law.mu(vs0)
-    slope = law.slope(vs0)
-    m = p.nut_mass + p.payload_mass
     load = _axial_load(p, v, s)
-    if load == 0.0:
-        raise ParameterError('speed', f'{v!r} m/s leaves the thread unloaded (no axial load): '
-                             'the nut floats in the backlash; add a load or guide damping')
-    sigma = 1.0 if load > 0.0 else -1.0
-    den = cl - sigma * s * mu0 * sl
-    if den <= 0.0:
-        raise ParameterError('mu_k', f"mu' tan(lambda) = {mu0 * tl:.3g} >= 1 at "
-                             f'{v!r} m/s: the thread jams')
-    n_abs = abs(load) / den
-    n0 = sigma * n_abs
-    ff0 = -mu0 * n_abs * s
-    fa0 = n0 * cl + ff0 * sl
-    t_thread = rm * (-n0 * sl + ff0 * cl)
+    if p.anti_backlash:
+        nuts, spring = _split_nut(p, load, s, mu0, v)
+    else:
+        if load == 0.0:
+            raise ParameterError('speed', f'{v!r} m/s leaves the thread unloaded (no axial '
+                                 'load): the nut floats in the backlash; add a load or '
+                                 'guide damping')
+        nuts, spring = (_flank(load, s, mu0, lam, v),), 0.0
+    fa0 = sum(sg * n * cl - mu0 * n * s * sl for sg, n in nuts)
+    t_thread = sum(rm * (-sg * n * sl - mu0 * n * s * cl) for sg, n in nuts)
     t_res = p.bearing_viscous * omega + (p.bearing_coulomb
                                          + p.collar_mu * p.collar_radius * abs(fa0)) * s
     torque = t_res - t_thread
@@ -137,10 +186,15 @@ def operating_point(params, speed, drive='velocity'):
                              f' N m steady sliding at {v!r} m/s needs')
     rigid = p.coupling_stiffness == 0.0
     twist = 0.0 if rigid else torque / p.coupling_stiffness
-    delta0 = -sigma * (p.backlash / 2.0 + n_abs * cl / p.contact_stiffness)
-    g = load_factor(mu0, tl, sigma * s)
-    j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + m * rm * rt * g
+    deltas = [-sg * (p.backlash / 2.0 + n * cl / p.contact_stiffness) for sg, n in nuts]
+    masses = (p.nut_mass + p.payload_mass, p.second_nut_mass)
+    g = load_factor(mu0, tl, nuts[0][0] * s)
+    j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + rm * rt * sum(
+        m * load_factor(mu0, tl, sg * s) for m, (sg, _) in zip(masses, nuts))
     w_ref, integral = _drive_state(p, drive, v, omega, torque)
-    return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0, slope=slope,
-                load=load, N0=n0, Fa0=fa0, torque=torque, twist=twist, delta0=delta0, G=g,
-                J_e=j_e, w_ref=w_ref, integral=integral, rigid=rigid, drive=drive)
+    sigma, n_abs = nuts[0]
+    return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0,
+                slope=law.slope(vs0), load=load, N0=sigma * n_abs, Fa0=fa0, torque=torque,
+                twist=twist, delta0=deltas[0], G=g, J_e=j_e, w_ref=w_ref, integral=integral,
+                rigid=rigid, drive=drive, nuts=tuple(nuts), deltas=tuple(deltas),
+                spring=spring)

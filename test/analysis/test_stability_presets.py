@@ -1,0 +1,199 @@
+"""
+Stability of the shipped presets and of the split nut, against eigen-analyses written here.
+
+The oracles follow the equations of doc/model.md (thread contact, Stribeck
+friction, coupling, the servo's PI velocity loop, the preload spring of the
+split nut) linearised about steady sliding, in the test's own coordinates.
+"""
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from leadscrew_sim import load_preset, preset_names
+from leadscrew_sim.analysis.stability import linear_stability, nonlinear_stability
+from leadscrew_sim.analysis.stability.linearise import eigenvalues
+from leadscrew_sim.analysis.stability.operating_point import operating_point
+from leadscrew_sim.core.params import ScrewParams
+
+PSI_A = math.radians(15.0)      # trapezoidal thread half-angle
+
+
+def geometry(p):
+    """Return (r_m, r_t, lambda, thread factor 1 / cos(psi_n)) from D, p, n_s."""
+    lead = p.pitch * p.starts
+    rm = (p.major_diameter - p.pitch / 2.0) / 2.0
+    lam = math.atan(lead / (2.0 * math.pi * rm))
+    psi_n = math.atan(math.tan(PSI_A) * math.cos(lam))
+    return rm, lead / (2.0 * math.pi), lam, 1.0 / math.cos(psi_n)
+
+
+def friction(p, vs):
+    """Return (mu', dmu'/dv) of the exponential Stribeck law at sliding speed vs > 0."""
+    _, _, _, tf = geometry(p)
+    e = math.exp(-vs / p.stribeck_velocity)
+    return (tf * (p.mu_k + (p.mu_s - p.mu_k) * e + p.mu_viscous * vs),
+            tf * (p.mu_viscous - (p.mu_s - p.mu_k) * e / p.stribeck_velocity))
+
+
+def steady_nuts(p, v):
+    """
+    Return [(sigma, |N|), ...] of the nut bodies raised at v > 0 (fixed-point on the preload).
+
+    Nut A's thread carries W = m g + c_x v (+ F_s), half-nut B's m_b g - F_s,
+    F_s = F_p + k_p (b - (delta_B - delta_A)), delta = -sigma (b/2 + |N| cos / k).
+    """
+    rm, rt, lam, _ = geometry(p)
+    sl, cl = math.sin(lam), math.cos(lam)
+    mu, _ = friction(p, v / sl)
+    w_a = (p.nut_mass + p.payload_mass) * p.gravity * math.sin(p.inclination) \
+        + p.guide_viscous * v
+
+    def nut(w):
+        sg = 1.0 if w > 0 else -1.0
+        return sg, abs(w) / (cl - sg * mu * sl)
+    if not p.anti_backlash:
+        return [nut(w_a)]
+    w_b = p.second_nut_mass * p.gravity * math.sin(p.inclination)
+    f_s = p.preload_force
+    for _ in range(200):
+        (sa, na), (sb, nb) = nut(w_a + f_s), nut(w_b - f_s)
+        d_a = -sa * (p.backlash / 2 + na * cl / p.contact_stiffness)
+        d_b = -sb * (p.backlash / 2 + nb * cl / p.contact_stiffness)
+        f_s = p.preload_force + p.preload_stiffness * (p.backlash - (d_b - d_a))
+    return [nut(w_a + f_s), nut(w_b - f_s)]
+
+
+def own_matrix(p, v, drive):
+    """
+    First-order matrix of the axis raised at v > 0: q_m (velocity drive), q, x_A (, x_B).
+
+    Velocity drive: T = -K_v q_m' - (K_v / T_i) q_m (the PI loop; its integral state
+    is -q_m in the perturbation). Ideal drive: q_m = 0. The collar is frictionless.
+    """
+    rm, rt, lam, _ = geometry(p)
+    sl, cl = math.sin(lam), math.cos(lam)
+    _, slope = friction(p, v / sl)
+    nuts = steady_nuts(p, v)
+    motor = drive == 'velocity'
+    n = 1 + motor + len(nuts)
+    iq, ix = int(motor), [1 + motor + i for i in range(len(nuts))]
+    f = np.zeros((n, 2 * n))
+    mass = np.zeros(n)
+    for i, (sg, nn) in zip(ix, nuts):
+        d = np.zeros(2 * n)
+        d[i], d[iq] = 1.0, -rt
+        dn = -(p.contact_stiffness * d + p.contact_damping * np.roll(d, n)) / cl
+        vs = np.zeros(2 * n)
+        vs[n + iq], vs[n + i] = rm * cl, sl
+        df = -(friction(p, v / sl)[0] * sg * dn + nn * slope * vs)
+        f[i] += cl * dn + sl * df
+        f[iq] += rm * (-sl * dn + cl * df)
+    mass[ix[0]] = p.nut_mass + p.payload_mass
+    f[ix[0], n + ix[0]] -= p.guide_viscous
+    if len(ix) == 2:
+        mass[ix[1]] = p.second_nut_mass
+        for a, b in ((ix[0], ix[1]), (ix[1], ix[0])):
+            f[a, a] -= p.preload_stiffness
+            f[a, b] += p.preload_stiffness
+    mass[iq] = p.screw_inertia
+    kc, cc = p.coupling_stiffness, p.coupling_damping
+    f[iq, iq] -= kc
+    f[iq, n + iq] -= cc + p.bearing_viscous
+    if motor:
+        mass[0] = p.motor_inertia
+        f[iq, 0] += kc
+        f[iq, n] += cc
+        f[0, 0] -= kc + p.velocity_gain / p.velocity_integral_time
+        f[0, iq] += kc
+        f[0, n] -= cc + p.velocity_gain
+        f[0, n + iq] += cc
+    a = np.zeros((2 * n, 2 * n))
+    a[:n, n:] = np.eye(n)
+    a[n:] = f / mass[:, None]
+    return a
+
+
+def own_growth(p, v, drive):
+    """Return the eigenvalue of own_matrix with the largest real part."""
+    e = np.linalg.eigvals(own_matrix(p, v, drive))
+    return e[np.argmax(e.real)]
+
+
+def test_stick_slip_preset_critical_speed_velocity_drive():
+    """stick_slip under its servo: unstable below the own analysis's critical speed, stable above."""
+    p = load_preset('stick_slip', collar_mu=0.0)
+    assert p.velocity_filter_time == 0.0 and p.torque_lag == 0.0   # the oracle has neither
+    v_own = brentq(lambda v: own_growth(p, v, 'velocity').real, 2e-4, 2e-3, xtol=1e-12)
+    v_ours = brentq(lambda v: linear_stability(p, v, 'velocity')['growth_rate'],
+                    2e-4, 2e-3, xtol=1e-12)
+    assert v_ours == pytest.approx(v_own, rel=0.01)
+    for v in (0.7 * v_own, 0.95 * v_own, 1.05 * v_own, 1.5 * v_own):
+        row = linear_stability(p, v, 'velocity')
+        lam = own_growth(p, v, 'velocity')
+        assert row['growth_rate'] == pytest.approx(lam.real, rel=0.01)
+        assert row['frequency'] == pytest.approx(abs(lam.imag) / (2 * math.pi), rel=0.01)
+        assert row['mechanism'] == ('negative_damping' if v < v_own else 'stable')
+
+
+def test_stick_slip_preset_nonlinear_either_side():
+    """The full model sticks and slips at half the critical speed and slides steadily at twice it."""
+    p = load_preset('stick_slip')
+    v_c = brentq(lambda v: linear_stability(p, v, 'velocity')['growth_rate'], 2e-4, 2e-3)
+    below = nonlinear_stability(p, 0.5 * v_c, 'velocity', duration=2.0)
+    above = nonlinear_stability(p, 2.0 * v_c, 'velocity', duration=2.0)
+    assert below['verdict'] == 'limit_cycle' and below['stick_fraction'] > 0.0
+    assert above['verdict'] == 'stable'
+
+
+def split_axis(**kw):
+    """A vertical axis with a preloaded split nut, raised through a compliant coupling."""
+    base = dict(anti_backlash=True, preload_force=40.0, preload_stiffness=2e4,
+                second_nut_mass=0.05, mu_s=0.3, mu_k=0.15, stribeck_velocity=1e-3,
+                coupling_stiffness=2.0, coupling_damping=0.0, bearing_viscous=0.0,
+                guide_viscous=0.0, collar_mu=0.0, payload_mass=5.0, inclination=math.pi / 2,
+                contact_stiffness=1e8, contact_damping=5e3, screw_inertia=8e-6,
+                motor_inertia=1e-5, max_torque=5.0)
+    base.update(kw)
+    return ScrewParams(**base)
+
+
+@pytest.mark.parametrize('drive', ['ideal', 'velocity'])
+def test_split_nut_threshold_and_modes(drive):
+    """Split nut: the critical speed, growth rate and frequency of the own 3-4 DOF analysis."""
+    p = split_axis(velocity_gain=0.005, velocity_integral_time=0.0127)
+    nuts = steady_nuts(p, 1e-3)
+    assert [sg for sg, _ in nuts] == [1.0, -1.0]        # A on its leading, B on its trailing flank
+    row = linear_stability(p, 1e-3, drive)
+    assert row['N0'] == pytest.approx(nuts[0][1], rel=1e-9)
+    lo, hi = 1e-4, 5e-2
+    assert own_growth(p, lo, drive).real > 0.0 > own_growth(p, hi, drive).real
+    v_own = brentq(lambda v: own_growth(p, v, drive).real, lo, hi, xtol=1e-12)
+    v_ours = brentq(lambda v: linear_stability(p, v, drive)['growth_rate'], lo, hi, xtol=1e-12)
+    assert v_ours == pytest.approx(v_own, rel=0.01)
+    for v in (0.5 * v_own, 0.9 * v_own, 1.1 * v_own, 2.0 * v_own):
+        got, lam = linear_stability(p, v, drive), own_growth(p, v, drive)
+        assert got['growth_rate'] == pytest.approx(lam.real, rel=0.01)
+        assert got['frequency'] == pytest.approx(abs(lam.imag) / (2 * math.pi), rel=0.01)
+    # every mode, half-nut B's on its contact and the preload spring included: both are
+    # exact linearisations of the same equations, so they agree to round-off
+    own = np.linalg.eigvals(own_matrix(p, 2e-3, drive))
+    ours = eigenvalues(operating_point(p, 2e-3, drive), p)
+    assert len(ours) == len(own)
+    for lam in own:
+        assert np.min(np.abs(ours - lam)) < 1e-6 * abs(lam)
+
+
+@pytest.mark.parametrize('name', preset_names())
+def test_every_preset_classified(name):
+    """Each preset at +-1 mm/s under both drives gets a mechanism, linear and nonlinear."""
+    p = load_preset(name)
+    for v in (1e-3, -1e-3):
+        for drive in ('velocity', 'ideal'):
+            row = linear_stability(p, v, drive)
+            assert row['mechanism'] in ('stable', 'negative_damping', 'mode_coupling',
+                                        'kinematic_constraint')
+            assert math.isfinite(row['growth_rate'])
+    res = nonlinear_stability(p, 1e-3, 'velocity', duration=0.5)
+    assert res['verdict'] in ('stable', 'limit_cycle', 'bistable')
