@@ -122,7 +122,7 @@ def own_growth(p, v, drive):
 
 
 def test_stick_slip_preset_critical_speed_velocity_drive():
-    """stick_slip under its servo: unstable below the own analysis's critical speed, stable above."""
+    """stick_slip under its servo: unstable below the own critical speed, stable above."""
     p = load_preset('stick_slip', collar_mu=0.0)
     assert p.velocity_filter_time == 0.0 and p.torque_lag == 0.0   # the oracle has neither
     v_own = brentq(lambda v: own_growth(p, v, 'velocity').real, 2e-4, 2e-3, xtol=1e-12)
@@ -138,7 +138,7 @@ def test_stick_slip_preset_critical_speed_velocity_drive():
 
 
 def test_stick_slip_preset_nonlinear_either_side():
-    """The full model sticks and slips at half the critical speed and slides steadily at twice it."""
+    """The full model sticks and slips at half the critical speed, slides steadily at twice."""
     p = load_preset('stick_slip')
     v_c = brentq(lambda v: linear_stability(p, v, 'velocity')['growth_rate'], 2e-4, 2e-3)
     below = nonlinear_stability(p, 0.5 * v_c, 'velocity', duration=2.0)
@@ -148,7 +148,7 @@ def test_stick_slip_preset_nonlinear_either_side():
 
 
 def split_axis(**kw):
-    """A vertical axis with a preloaded split nut, raised through a compliant coupling."""
+    """Return a vertical axis with a preloaded split nut, raised through a compliant coupling."""
     base = dict(anti_backlash=True, preload_force=40.0, preload_stiffness=2e4,
                 second_nut_mass=0.05, mu_s=0.3, mu_k=0.15, stribeck_velocity=1e-3,
                 coupling_stiffness=2.0, coupling_damping=0.0, bearing_viscous=0.0,

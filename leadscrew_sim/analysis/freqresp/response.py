@@ -36,6 +36,7 @@ class FrequencyResponse:
     notes : list of str
         What the figures rest on (the hold and sampling of a discretised model,
         the settling periods discarded, the Welch segments), for the summary.
+
     """
 
     frequency: np.ndarray
