@@ -1,5 +1,5 @@
 """
-The ``stability`` verb: when does the axis stick-slip or squeal (physics.md section 12).
+The ``stability`` verb: when does the axis stick-slip or squeal (doc/stability.md).
 
 Parses the flags (interfaces.md, Analysis v3), calls
 :func:`leadscrew_sim.analysis.stability.stability_table` and prints its

@@ -34,7 +34,7 @@ def torque_band(params):
     Raising a load W along +x needs W r tan(lambda + phi), lowering it
     W r tan(phi - lambda) (negative: the load back-drives the screw); a
     torque between the two holds the nut. A right-hand thread moves the
-    nut toward -x for a positive torque (physics.md section 3).
+    nut toward -x for a positive torque (doc/model.md section 3).
     """
     p = params
     load = p.moving_mass * p.gravity * math.sin(p.inclination) - p.external_force

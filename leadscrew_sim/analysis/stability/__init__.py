@@ -1,5 +1,5 @@
 """
-Stability of steady sliding: when does the axis stick-slip or squeal (physics.md section 12).
+Stability of steady sliding: when does the axis stick-slip or squeal (doc/stability.md).
 
 - :mod:`.operating_point`: the steady sliding state at a nut speed.
 - :mod:`.linearise`: its linearisation and eigenvalues.

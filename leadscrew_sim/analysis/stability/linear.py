@@ -1,7 +1,7 @@
 """
 Linear stability of steady sliding: growth rate, frequency and mechanism.
 
-:func:`linear_stability` classifies by physics.md section 12, in this order:
+:func:`linear_stability` classifies by the rule of doc/stability.md, in this order:
 kinematic_constraint (the rigid-contact effective inertia J_e <= 0), stable
 (no eigenvalue's real part above NEUTRAL times the largest
 eigenvalue modulus: an undamped, neutral mode counts as stable, round-off

@@ -1,5 +1,5 @@
 """
-The linearisation of steady sliding and its eigenvalues (physics.md section 12).
+The linearisation of steady sliding and its eigenvalues (doc/stability.md).
 
 Coordinates (q sense, perturbations about :func:`.operating_point.operating_point`):
 y = [q_m, q, x] with a compliant coupling under the velocity drive, [q, x]

@@ -1,5 +1,5 @@
 """
-The operating point of steady sliding (physics.md section 12).
+The operating point of steady sliding (doc/stability.md).
 
 The nut slides at a constant speed v [m/s] (sign = direction along +x); the
 screw turns at q' = v / r_t (q sense, r_t = l / 2 pi) and the thread slides at
@@ -28,7 +28,7 @@ DRIVES = ('velocity', 'ideal')
 
 def load_factor(mu, tan_l, sigma_s):
     """
-    Return the signed load factor G of physics.md section 2 (T = r_m W G).
+    Return the signed load factor G of the quasi-static relations (doc/model.md section 7; T = r_m W G).
 
     G+ = (tan + mu) / (1 - mu tan) when the drive moves against the load
     (sigma_s = +1), -G- = (tan - mu) / (1 + mu tan) when the load assists (-1).
