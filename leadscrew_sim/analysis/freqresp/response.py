@@ -36,6 +36,10 @@ class FrequencyResponse:
     notes : list of str
         What the figures rest on (the hold and sampling of a discretised model,
         the settling periods discarded, the Welch segments), for the summary.
+    poles, zeros : ndarray of complex, optional
+        The linear model's poles and finite zeros [1/s] (continuous time).
+    loop_gain : ndarray of complex, optional
+        For a loop quantity, L at the same frequencies (margins and peak sensitivity).
 
     """
 
@@ -47,6 +51,9 @@ class FrequencyResponse:
     output: str
     source: str
     notes: list = field(default_factory=list)
+    poles: np.ndarray = None
+    zeros: np.ndarray = None
+    loop_gain: np.ndarray = None
 
     @property
     def magnitude_db(self):

@@ -1,0 +1,225 @@
+"""
+The linearised axis without its drive: the plant of a frequency response (physics.md 13).
+
+Operating points (q sense, perturbations about them):
+
+- sliding at a nut speed v != 0: the steady sliding state of the stability
+  analysis (:func:`..stability.operating_point.operating_point`) and the
+  linearisation of physics.md section 12 (as :mod:`..stability.linearise`
+  has it, single nut): contact on the loaded flank, friction linearised with
+  its slope, the collar torque following |F_a|;
+- at rest (v = 0) on the loaded flank: the contact is a spring (both flanks
+  when the backlash is 0); with thread friction (mu_s > 0) the thread is
+  stuck, its stiction limit not reached: the sliding velocity
+  v_s = r_m cos(lambda) q' + sin(lambda) x' stays 0, so the nut moves with
+  the screw as x = -r_m cot(lambda) q (the friction force is the constraint's
+  reaction) and only the contact's normal spring lets the screw turn. The
+  bearing, guide and collar Coulomb terms are left out at rest (stuck, they
+  only add to the thread's lock).
+
+:func:`plant` returns a :class:`Plant`: X' = A X + B_T T_c + B_F F with X the
+coordinates, their rates and the motor torque lag state (when tau_e > 0);
+T_c the torque command [N m], F the external force on the nut [N], both q
+sense / +x; and rows that read the motor angle and rate, nut position and
+velocity, the axial thread force and the applied motor torque.
+"""
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from ...core.params import ParameterError
+from ..stability.operating_point import operating_point
+
+__all__ = ['Plant', 'plant', 'rest_load']
+
+
+@dataclass
+class Plant:
+    """
+    The linear plant: X' = A X + B_T T_c + B_F F; rows over X (with coefficients on T_c, F).
+
+    Attributes
+    ----------
+    a : ndarray (n, n)
+        State matrix [SI].
+    b_t, b_f : ndarray (n,)
+        Inputs: torque command [N m] (q sense), external force [N] (+x).
+    rows : dict
+        name -> (row over X, coefficient on T_c, coefficient on F) for
+        q_m [rad], w_m [rad/s] (motor, q sense), x [m], v [m/s], force [N]
+        (axial thread force on the nut), torque [N m] (applied, q sense).
+    lag : bool
+        The applied torque is a state (tau_e > 0); else it is T_c itself.
+    state : str
+        'rest', 'stuck' (at rest, thread stuck) or 'sliding'.
+    op : dict
+        The operating point (speed [m/s], load [N], ...).
+
+    """
+
+    a: np.ndarray
+    b_t: np.ndarray
+    b_f: np.ndarray
+    rows: dict
+    lag: bool
+    state: str
+    op: dict
+
+
+def rest_load(p):
+    """Return W [N]: the axial force the thread supplies along +x at rest (-F_g - F_ext)."""
+    f_g = -(p.nut_mass + p.payload_mass) * p.gravity * math.sin(p.inclination)
+    return -f_g - p.external_force
+
+
+def _rest_op(p):
+    """Return the operating point dict at rest, for stability's mechanics (friction out)."""
+    if p.anti_backlash:
+        raise ParameterError('anti_backlash', 'true: the frequency response handles the '
+                             'single nut only (set it false)')
+    load = rest_load(p)
+    if load == 0.0 and p.backlash > 0.0:
+        raise ParameterError('backlash', f'{p.backlash!r} m with no axial load at rest: the nut '
+                             'floats in the backlash (give a load, or backlash 0, or a speed)')
+    return dict(speed=0.0, s=0.0, sigma=1.0 if load >= 0.0 else -1.0, N0=0.0, mu0=0.0,
+                slope=0.0, Fa0=0.0, load=load, torque=p.lead_ratio * load,
+                rigid=p.coupling_stiffness == 0.0, drive='velocity')
+
+
+def _stuck_map(p, n, iq, ix):
+    """Return R (n, n-1): y = R y_r with x = -r_m cot(lambda) q (the stuck thread)."""
+    keep = [i for i in range(n) if i != ix]
+    r = np.zeros((n, n - 1))
+    for j, i in enumerate(keep):
+        r[i, j] = 1.0
+    r[ix, keep.index(iq)] = -p.r_m / math.tan(p.lead_angle)
+    return r
+
+
+def _mechanics(op, p):
+    """Return (masses, F over z = [y, y'], i_qm or None, i_q, i_x); y = [q_m,] q, x."""
+    rigid = op['rigid']
+    im, iq, ix = (None, 0, 1) if rigid else (0, 1, 2)
+    n = 2 if rigid else 3
+    sl, cl = math.sin(p.lead_angle), math.cos(p.lead_angle)
+    g_delta = np.zeros(2 * n)               # delta = x - r_t q
+    g_delta[ix], g_delta[iq] = 1.0, -p.lead_ratio
+    g_n = -(p.contact_stiffness * g_delta + p.contact_damping * np.roll(g_delta, n)) / cl
+    g_vs = np.zeros(2 * n)                  # v_s = r_m cos(lambda) q' + sin(lambda) x'
+    g_vs[n + ix], g_vs[n + iq] = sl, p.r_m * cl
+    g_f = -op['s'] * (op['mu0'] * op['sigma'] * g_n + abs(op['N0']) * op['slope'] * g_vs)
+    g_fa = cl * g_n + sl * g_f
+    f = np.zeros((n, 2 * n))
+    mass = np.zeros(n)
+    f[ix] = g_fa
+    f[ix, n + ix] -= p.guide_viscous
+    mass[ix] = p.nut_mass + p.payload_mass
+    f[iq] = p.r_m * (-sl * g_n + cl * g_f)
+    f[iq] -= p.collar_mu * p.collar_radius * op['s'] * math.copysign(1.0, op['Fa0']) * g_fa
+    f[iq, n + iq] -= p.bearing_viscous
+    mass[iq] = p.screw_inertia + (p.motor_inertia if rigid else 0.0)
+    if not rigid:
+        kc, cc = p.coupling_stiffness, p.coupling_damping
+        mass[im] = p.motor_inertia
+        for a, b, sign in ((iq, im, 1.0), (im, iq, 1.0), (iq, iq, -1.0), (im, im, -1.0)):
+            f[a, b] += sign * kc
+            f[a, n + b] += sign * cc
+    return mass, f, im, iq, ix
+
+
+def _second_order(p, op, stuck):
+    """Return (mass matrix, force matrix over [y, y'], R, iq_m, iq, ix) of the mechanics."""
+    mass, f, im, iq, ix = _mechanics(op, p)
+    n = len(mass)
+    r = _stuck_map(p, n, iq, ix) if stuck else np.eye(n)
+    rr = np.zeros((2 * n, 2 * r.shape[1]))
+    rr[:n, :r.shape[1]] = r
+    rr[n:, r.shape[1]:] = r
+    return np.diag(mass), f, r, rr, im, iq, ix
+
+
+def plant(params, speed=0.0):
+    """
+    Return the :class:`Plant` of the axis at rest (speed 0) or sliding at ``speed`` [m/s].
+
+    Parameters
+    ----------
+    params : ScrewParams
+        The axis (single nut).
+    speed : float
+        Nut speed [m/s]; 0: at rest on the loaded flank.
+
+    Raises
+    ------
+    ParameterError
+        For a split nut, a nut floating in the backlash at rest, or a
+        sliding state that does not exist (see the stability analysis).
+
+    """
+    p = params
+    if speed == 0.0:
+        op = _rest_op(p)
+        stuck = p.mu_s > 0.0
+    else:
+        op = dict(operating_point(p, speed, 'ideal'), drive='velocity')
+        stuck = False
+    m, f, r, rr, im, iq, ix = _second_order(p, op, stuck)
+    n = len(m)
+    nr = r.shape[1]
+    m_r = r.T @ m @ r
+    f_r = r.T @ f @ rr                      # generalised forces over [y_r, y_r']
+    jm = im if im is not None else iq       # the body the motor torque drives
+    lag = p.torque_lag > 0.0
+    nx = 2 * nr + (1 if lag else 0)
+    minv = np.linalg.inv(m_r)
+    a = np.zeros((nx, nx))
+    a[:nr, nr:2 * nr] = np.eye(nr)
+    a[nr:2 * nr, :2 * nr] = minv @ f_r
+    e_t = np.zeros(n)
+    e_t[jm] = 1.0
+    e_f = np.zeros(n)
+    e_f[ix] = 1.0
+    b_t, b_f = np.zeros(nx), np.zeros(nx)
+    acc_t = minv @ (r.T @ e_t)              # acceleration per unit applied torque
+    b_f[nr:2 * nr] = minv @ (r.T @ e_f)
+    if lag:
+        a[nr:2 * nr, -1] = acc_t
+        a[-1, -1] = -1.0 / p.torque_lag
+        b_t[-1] = 1.0 / p.torque_lag
+    else:
+        b_t[nr:2 * nr] = acc_t
+    rows = _rows(p, a, b_t, b_f, rr, nr, nx, jm, ix, lag)
+    return Plant(a=a, b_t=b_t, b_f=b_f, rows=rows, lag=lag,
+                 state='sliding' if speed else ('stuck' if stuck else 'rest'), op=op)
+
+
+def _rows(p, a, b_t, b_f, rr, nr, nx, jm, ix, lag):
+    """Return the output rows of :class:`Plant` (row over X, coefficient on T_c, on F)."""
+    n = rr.shape[0] // 2
+
+    def full(row_y):                        # a row over z = [y, y'] -> over X
+        out = np.zeros(nx)
+        out[:2 * nr] = row_y @ rr
+        return out
+
+    def unit(i):
+        e = np.zeros(2 * n)
+        e[i] = 1.0
+        return full(e)
+
+    rows = dict(q_m=(unit(jm), 0.0, 0.0), w_m=(unit(n + jm), 0.0, 0.0),
+                x=(unit(ix), 0.0, 0.0), v=(unit(n + ix), 0.0, 0.0))
+    # axial thread force F_a = m x'' + c_x x' - F: the nut's own balance
+    m_nut = p.nut_mass + p.payload_mass
+    row_v = rows['v'][0]
+    acc = row_v @ a
+    rows['force'] = (m_nut * acc + p.guide_viscous * row_v, m_nut * (row_v @ b_t),
+                     m_nut * (row_v @ b_f) - 1.0)
+    if lag:
+        e = np.zeros(nx)
+        e[-1] = 1.0
+        rows['torque'] = (e, 0.0, 0.0)
+    else:
+        rows['torque'] = (np.zeros(nx), 1.0, 0.0)
+    return rows
