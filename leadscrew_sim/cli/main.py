@@ -8,7 +8,7 @@ for tracebacks.
 import os
 import sys
 
-from . import excite, identify, info, play, plot, recover, resim, simulate, stability
+from . import excite, freqresp, identify, info, play, plot, recover, resim, simulate, stability
 from .args import Parser, PROG, UsageError
 from ..offline.options import RunError
 from ..core.params import ParameterError
@@ -17,20 +17,20 @@ from ..io.mcap_reader import RecordingError
 from ..io.run_file import RunFileError
 
 #: The verbs that run the compiled kernel: a first run says that it compiles it.
-KERNEL_VERBS = ('simulate', 'resim', 'identify', 'stability')
+KERNEL_VERBS = ('simulate', 'resim', 'identify', 'stability', 'freqresp')
 
 #: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
 #: ``summary`` is an alias of ``info``.
 VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
          ('play', play), ('plot', plot), ('excite', excite), ('identify', identify),
-         ('stability', stability), ('recover', recover))
+         ('stability', stability), ('freqresp', freqresp), ('recover', recover))
 
 
 def build_parser():
     """Return the argument parser of all verbs."""
     parser = Parser(prog=PROG, description='Offline tools for the leadscrew_sim lead screw '
                     'axis: simulate, info, resim, play, plot, excite, identify, stability, '
-                    'recover.')
+                    'freqresp, recover.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     for name, verb in VERBS:
