@@ -32,6 +32,11 @@ def exact(sysd, f):
     return np.asarray(sysd(np.exp(2j * math.pi * np.asarray(f) * DT)), dtype=complex)
 
 
+def paired(sysd, f):
+    """Return z C (z I - Phi)^-1 Gamma: the input held over the step ending at y's stamp."""
+    return np.exp(2j * math.pi * np.asarray(f) * DT) * exact(sysd, f)
+
+
 def noisy_run(sysd, n=2 ** 16, sigma_u=1.0, sigma_n=0.05, seed=3):
     """Return (u, y): white input and the output plus white measurement noise."""
     rng = np.random.default_rng(seed)
@@ -87,8 +92,9 @@ def recorded(sysd, n, seed=5):
     Return a recording-like run: commands logged between ticks, states stamped on ticks.
 
     Times are integer ns. The command acting over step k (from t_k) is the last
-    one logged at or before t_k; the state stamped t_k is the output there;
-    the effort stamped t_(k+1) is the torque held over step k.
+    one logged at or before t_k; the state stamped t_k is the output there
+    (python-control: y_k = C x_k); the effort stamped t_(k+1) is the torque
+    held over step k.
     """
     rng = np.random.default_rng(seed)
     step = 1_000_000
@@ -102,26 +108,28 @@ def recorded(sysd, n, seed=5):
 
 
 def test_alignment_gives_the_zoh_discretisation_and_the_effort_moves_one_step():
+    # Commands and efforts both pair the torque held over the step ending at
+    # the state's stamp with that state: z C (z I - Phi)^-1 Gamma.
     sysd = velocity_plant()
     n = 2 ** 15
     t0, step, commands, states, efforts = recorded(sysd, n)
-    true = None
     for series, effort in ((commands, False), (efforts, True)):
         u, y = W.align(t0, step, n, series, states, effort=effort)
-        assert np.isfinite(u).all() and np.isfinite(y).all()
-        r = W.welch_response(u, y, DT, 'torque', 'motor_velocity', fmin=2.0, fmax=400.0)
-        true = exact(sysd, r.frequency)
+        assert np.isnan(u[0])          # no command before t0 - dt, no effort stamped t0
+        assert np.isfinite(u[1:]).all() and np.isfinite(y).all()
+        r = W.welch_response(u[1:], y[1:], DT, 'torque', 'motor_velocity', fmin=2.0,
+                             fmax=400.0)
+        true = paired(sysd, r.frequency)
         # Noise-free: only the windows' leakage of the plant's 10 ms transient
         # across segment edges (segments of 4096 steps): well below 1 %.
         assert np.max(np.abs(r.response / true - 1.0)) < 0.01
         assert r.coherence.min() > 0.99
-    # Taking the effort at its own stamp (one step late) leads the phase by
-    # w T (the output seems a step earlier): 36 deg at 100 Hz, far outside the
+    # Taking the effort as a command pairs each state with the effort of the
+    # step before: the phase leads by w T, 36 deg at 100 Hz, far outside the
     # tolerance above.
     u, y = W.align(t0, step, n, efforts, states, effort=False)
-    assert np.isnan(u[0])                   # no effort stamped t0 yet
-    r = W.welch_response(u[1:], y[1:], DT, 'torque', 'motor_velocity', fmin=90.0, fmax=110.0)
-    shift = np.degrees(np.angle(r.response / exact(sysd, r.frequency)))
+    r = W.welch_response(u[2:], y[2:], DT, 'torque', 'motor_velocity', fmin=90.0, fmax=110.0)
+    shift = np.degrees(np.angle(r.response / paired(sysd, r.frequency)))
     assert shift == pytest.approx(360 * r.frequency * DT, abs=0.5)
 
 
