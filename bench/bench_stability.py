@@ -3,10 +3,13 @@ Benchmark the stability map: the nonlinear runs against the bare kernel, workers
 
 Run: .venv/bin/python bench/bench_stability.py [--speeds 8] [--dampings 4] [--duration 2]
 [--drive velocity] [--no-dask]
+or, the 10,000-case map of tr12x3:
+.venv/bin/python bench/bench_stability.py --preset tr12x3 --speeds 100 --dampings 100
 
-The map is the stick_slip preset over speed (0.3 .. 4 mm/s, log) x
-coupling_damping (0 .. 1e-3 N m s/rad), ``--method nonlinear`` (two runs of
-``--duration`` per case). It reports: the wall time of the map in this
+The map is the preset (default stick_slip) over speed (0.3 .. 4 mm/s, log) x
+its second axis, ``--method nonlinear`` (two runs of ``--duration`` per
+case): coupling_damping (0 .. 1e-3 N m s/rad) for a compliant coupling,
+else payload_mass (its value .. 3 times it). It reports: the wall time of the map in this
 process (1 worker); the bare kernel time of the same runs (LeadScrewModel.run
 with the same command rows and steps, nothing else; velocity drive only);
 the map on 2 local worker processes; and on a Dask LocalCluster of 2
@@ -22,11 +25,12 @@ import numpy as np
 from leadscrew_sim.analysis.stability import operating_point
 from leadscrew_sim.analysis.stability.executors import identical, warm
 from leadscrew_sim.analysis.stability.grid import case_params, expand, parse_axis
-from leadscrew_sim.analysis.stability.nonlinear import _place
+from leadscrew_sim.analysis.stability.nonlinear import SMALL_PERTURBATION
 from leadscrew_sim.analysis.stability.table import stability_table
 from leadscrew_sim.core.drive_modes import MODE_VELOCITY
 from leadscrew_sim.core.model import LeadScrewModel
 from leadscrew_sim.core.presets import load_preset
+from leadscrew_sim.core.steady import place_sliding
 
 
 def bare_kernel(base, grid, duration, dt=1e-3):
@@ -39,7 +43,7 @@ def bare_kernel(base, grid, duration, dt=1e-3):
         op = operating_point(params, v, 'velocity')
         for stuck in (False, True):
             model = LeadScrewModel(params, dt=dt)
-            _place(model, op, stuck)
+            place_sliding(model, op, stuck, 1.0 if stuck else 1.0 + SMALL_PERTURBATION)
             rows = np.tile([[MODE_VELOCITY, math.nan, params.hand_sign * op['w_ref'], 0.0]],
                            (n, 1))
             t0 = time.perf_counter()
@@ -63,9 +67,12 @@ def main():
     ap.add_argument('--duration', type=float, default=2.0)
     ap.add_argument('--drive', default='velocity', choices=('velocity', 'ideal'))
     ap.add_argument('--no-dask', action='store_true')
+    ap.add_argument('--preset', default='stick_slip')
     a = ap.parse_args()
-    base = load_preset('stick_slip')
-    grid = [f'speed=3e-4:4e-3:{a.speeds}:log', f'coupling_damping=0:1e-3:{a.dampings}']
+    base = load_preset(a.preset)
+    second = (f'coupling_damping=0:1e-3:{a.dampings}' if base.coupling_stiffness > 0.0 else
+              f'payload_mass={base.payload_mass:g}:{3 * base.payload_mass:g}:{a.dampings}')
+    grid = [f'speed=3e-4:4e-3:{a.speeds}:log', second]
     n = a.speeds * a.dampings
     warm()
 
@@ -74,7 +81,8 @@ def main():
                                duration=a.duration, **kw)
 
     serial, t1 = timed(lambda: table(workers=1))
-    print(f'{n} cases, 2 runs of {a.duration:g} s each, drive {a.drive}')
+    print(f'{a.preset}: {n} cases ({", ".join(grid)}), 2 runs of {a.duration:g} s each, '
+          f'drive {a.drive}')
     print(f'map, 1 worker (this process)   {t1:8.2f} s')
     if a.drive == 'velocity':
         tk = bare_kernel(base, grid, a.duration)

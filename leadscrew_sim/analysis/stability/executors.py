@@ -93,7 +93,8 @@ def run_batch(base, cases, speed, drive, method, duration):
     """
     from .grid import run_case
     warm()
-    return [run_case(base, c, speed, drive, method, duration) for c in cases]
+    cache = {}
+    return [run_case(base, c, speed, drive, method, duration, cache) for c in cases]
 
 
 def _start_method():

@@ -120,7 +120,7 @@ def expand(axes):
     return [dict(zip(names, combo)) for combo in itertools.product(*(a[1] for a in axes))]
 
 
-def case_params(base, case):
+def case_params(base, case, cache=None):
     """
     Return (params, speed override or None) of one case.
 
@@ -130,13 +130,24 @@ def case_params(base, case):
         The base parameters.
     case : dict
         Swept name -> value.
+    cache : dict, optional
+        Parameters already built for this base, by their swept values: the
+        cases of a batch that differ in speed only share one (validated) set.
 
     """
     fields = {k: v for k, v in case.items() if k != 'speed'}
-    return (dataclasses.replace(base, **fields) if fields else base), case.get('speed')
+    if not fields:
+        return base, case.get('speed')
+    key = tuple(sorted(fields.items()))
+    params = cache.get(key) if cache is not None else None
+    if params is None:
+        params = dataclasses.replace(base, **fields)
+        if cache is not None:
+            cache[key] = params
+    return params, case.get('speed')
 
 
-def run_case(base, case, speed, drive='velocity', method='both', duration=2.0):
+def run_case(base, case, speed, drive='velocity', method='both', duration=2.0, cache=None):
     """
     Return the row of one case: the swept values, then COLUMNS.
 
@@ -154,13 +165,15 @@ def run_case(base, case, speed, drive='velocity', method='both', duration=2.0):
         One of METHODS.
     duration : float
         Length of each nonlinear run [s].
+    cache : dict, optional
+        Shared parameter sets of the batch (see :func:`case_params`).
 
     """
     row = dict(case)
     row.update({c: math.nan for c in COLUMNS})
     row.update(mechanism='', verdict='', error='')
     try:
-        params, v = case_params(base, case)
+        params, v = case_params(base, case, cache)
         v = speed if v is None else v
         if method in ('linear', 'both'):
             lin = linear_stability(params, v, drive)

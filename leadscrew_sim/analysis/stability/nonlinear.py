@@ -88,11 +88,8 @@ def measure(velocity, stuck, dt):
     return amp, share, period
 
 
-def _one_run(params, op, duration, dt, stuck):
-    """Run one start; return its (amplitude, stick fraction, period, |mean velocity - v|)."""
-    if op['drive'] == 'ideal':
-        params = dataclasses.replace(params, motor_inertia=IDEAL_MOTOR_INERTIA)
-    model = LeadScrewModel(params, dt=dt)
+def _one_run(model, op, duration, dt, stuck):
+    """Run one start from a model at rest; return (amplitude, stick fraction, period, |mean v - v|)."""
     place_sliding(model, op, stuck, 1.0 if stuck else 1.0 + SMALL_PERTURBATION)
     n = max(4, int(round(duration / dt)))
     run = _run_ideal if op['drive'] == 'ideal' else _run_velocity
@@ -142,8 +139,12 @@ def nonlinear_stability(params, speed, drive='velocity', duration=2.0, dt=1e-3):
     if abs(speed) * duration >= 0.9 * abs(room):
         raise ParameterError('duration', f'{duration!r} s at {speed!r} m/s travels beyond '
                              f'90 % of the {abs(room):.4g} m to the end stop')
-    a_small, _, _, off_small = _one_run(params, op, duration, dt, stuck=False)
-    a_large, frac, period, off_large = _one_run(params, op, duration, dt, stuck=True)
+    if drive == 'ideal':
+        params = dataclasses.replace(params, motor_inertia=IDEAL_MOTOR_INERTIA)
+    model = LeadScrewModel(params, dt=dt)      # one model, reset between the two starts
+    a_small, _, _, off_small = _one_run(model, op, duration, dt, stuck=False)
+    model.reset()
+    a_large, frac, period, off_large = _one_run(model, op, duration, dt, stuck=True)
     tol = OSCILLATING * abs(speed)
     if max(a_small, off_small) >= tol:
         verdict = 'limit_cycle'
