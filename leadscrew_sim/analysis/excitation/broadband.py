@@ -406,16 +406,16 @@ class Chirp(_Broadband):
 
 class Multisine(_Broadband):
     """
-    A sum of sines with Schroeder phases on the lines k / period in [fmin, fmax].
+    A sum of sines of equal amplitude on the lines k / period in [fmin, fmax], low crest factor.
 
     ``lines`` log-spaced lines (merged where they round to one harmonic of
-    1 / ``period``), every one of the same amplitude, scaled so the signal's
-    peak is ``amplitude``. One period fades in, ``periods`` whole periods run
+    1 / ``period``), phases of a low crest factor (:meth:`design`), scaled so
+    the signal's peak is ``amplitude``. One period fades in, ``periods`` whole periods run
     at full amplitude (the measurement), one period fades out.
     """
 
     name = 'multisine'
-    summary = 'Schroeder-phased multisine on lines from fmin to fmax (frequency response)'
+    summary = 'multisine of low crest factor on lines from fmin to fmax (frequency response)'
     EXTRA = {
         'period': ('s', 'period of the signal (its line spacing is 1 / period)', 1e-3, 3600.0,
                    False),
@@ -451,17 +451,28 @@ class Multisine(_Broadband):
                                'complete a period)')
         return signals.multisine_frequencies(o['fmin'], o['fmax'], o['period'], o['lines'])
 
-    def _unit_gain(self, o):
-        """Return the gain that makes the multisine's peak 1 (grid peak, Newton-refined)."""
+    def design(self, o=None):
+        """
+        Return (line frequencies [Hz], phases [rad], gain) of the multisine, peak 1.
+
+        The phases start from Schroeder's and are improved by clipping
+        iterations (a low crest factor on any set of lines): the signal of
+        unit lines is clipped at 90 % of its peak and the lines' phases of the
+        clipped signal kept, :data:`_CLIP_ITERATIONS` times; the set with the
+        lowest crest factor on the grid wins. The gain makes the peak 1: the
+        grid's largest samples refined by Newton steps on s'(t) = 0.
+        """
+        o = self.options if o is None else o
         key = (o['fmin'], o['fmax'], o['period'], o['lines'])
-        cache = self.__dict__.get('_gain')
+        cache = self.__dict__.get('_design')
         if cache and cache[0] == key:
             return cache[1]
         f = self.frequencies(o)
-        n = 1 << int(math.ceil(math.log2(max(64, 16 * f[-1] * o['period']))))
+        h = np.rint(f * o['period']).astype(int)
+        n = 1 << int(math.ceil(math.log2(max(64, 8 * h[-1]))))
+        ph = _clipped_phases(h, n, signals.schroeder_phases(len(f)))
         t = np.arange(n) * (o['period'] / n)
-        s = signals.multisine(t, f)
-        ph = signals.schroeder_phases(len(f))
+        s = signals.multisine(t, f, 1.0, ph)
         w = 2.0 * math.pi * f
         peak = 0.0
         for i in np.argsort(-np.abs(s))[:8]:
@@ -472,13 +483,35 @@ class Multisine(_Broadband):
                 if d2 == 0.0:
                     break
                 x -= d1 / d2
-            peak = max(peak, abs(float(signals.multisine(np.array([x]), f)[0])), abs(s[i]))
-        object.__setattr__(self, '_gain', (key, 1.0 / peak))
-        return 1.0 / peak
+            peak = max(peak, abs(float(signals.multisine(np.array([x]), f, 1.0, ph)[0])),
+                       abs(s[i]))
+        out = (f, ph, 1.0 / peak)
+        object.__setattr__(self, '_design', (key, out))
+        return out
 
     def shape(self, tau, o):
-        """Return the multisine with peak 1 (the lines of :meth:`frequencies`)."""
-        return self._unit_gain(o) * signals.multisine(tau, self.frequencies(o))
+        """Return the multisine with peak 1 (:meth:`design`)."""
+        f, ph, gain = self.design(o)
+        return gain * signals.multisine(tau, f, 1.0, ph)
+
+
+#: Clipping iterations of a multisine's phases.
+_CLIP_ITERATIONS = 100
+
+
+def _clipped_phases(h, n, start):
+    """Return the phases [rad] of unit lines at bins h of an n-point period, low crest factor."""
+    best, ph = (math.inf, start), start
+    for _ in range(_CLIP_ITERATIONS):
+        spec = np.zeros(n // 2 + 1, dtype=complex)
+        spec[h] = np.exp(1j * ph)
+        x = np.fft.irfft(spec, n)
+        crest = np.abs(x).max() / math.sqrt(float(np.mean(x * x)))
+        if crest < best[0]:
+            best = (crest, ph)
+        lim = 0.9 * np.abs(x).max()
+        ph = np.angle(np.fft.rfft(np.clip(x, -lim, lim))[h])
+    return best[1]
 
 
 #: The broadband profiles by name.
