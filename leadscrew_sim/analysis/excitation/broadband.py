@@ -449,7 +449,10 @@ class Multisine(_Broadband):
             raise ProfileError(self.name, 'period', f'= {o["period"]!r} s: is shorter than '
                                f'1 / fmin = {1.0 / o["fmin"]:g} s (the lowest line must '
                                'complete a period)')
-        return signals.multisine_frequencies(o['fmin'], o['fmax'], o['period'], o['lines'])
+        f = signals.multisine_frequencies(o['fmin'], o['fmax'], o['period'], o['lines'])
+        if not len(f):
+            raise ProfileError(self.name, 'lines', f'= {o["lines"]!r}: no line in the band')
+        return f
 
     def design(self, o=None):
         """
