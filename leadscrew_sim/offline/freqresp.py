@@ -23,7 +23,7 @@ import numpy as np
 
 from .options import load_params, parse_sets, RunError
 from ..analysis.freqresp.measure import (check_request, frequencies, linear_response,
-                                         simulated_response)
+                                         measurement_step, simulated_response)
 from ..analysis.freqresp.output import plot_bode, write_csv
 from ..analysis.freqresp.summary import summary_lines
 
@@ -63,10 +63,11 @@ def _names(args):
             None, None)
 
 
-def _linear(params, names, f, args, sampling):
+def _linear(params, names, f, args, sampling, dt=None):
     inp, out, loop, qty = names
+    dt = 1.0 / _get(args, 'step_rate', 1000.0) if dt is None else dt
     return linear_response(params, inp, out, loop, qty, f, _get(args, 'speed', 0.0), sampling,
-                           1.0 / _get(args, 'step_rate', 1000.0), _get(args, 'mode'))
+                           dt, _get(args, 'mode'))
 
 
 def _recording(args):
@@ -131,7 +132,7 @@ def freqresp_run(args):
                 _get(args, 'settle', 3), _get(args, 'periods', 5), _get(args, 'workers'),
                 _get(args, 'scheduler'))
             linear = _linear(params, names, frequencies(fmin, fmax, OVERLAY_POINTS), args,
-                             'step')
+                             'step', measurement_step(params, dt, names[2]))
     if _get(args, 'output_csv'):
         write_csv(args.output_csv, responses)
     if _get(args, 'plot'):

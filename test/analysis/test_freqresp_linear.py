@@ -29,7 +29,7 @@ def lead_ratio(p):
 
 
 def two_inertia_axis(**kw):
-    """A frictionless horizontal axis with a compliant coupling and a very stiff contact."""
+    """Return a frictionless horizontal axis with a compliant coupling and a stiff contact."""
     base = dict(mu_s=0.0, mu_k=0.0, backlash=0.0, inclination=0.0, coupling_stiffness=20.0,
                 coupling_damping=0.0, contact_stiffness=1e11, contact_damping=0.0,
                 bearing_viscous=0.0, guide_viscous=0.0, payload_mass=2.0)

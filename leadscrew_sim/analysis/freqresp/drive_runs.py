@@ -17,6 +17,11 @@ ends at t_k) on top of the input's holding value:
 - the position loop: position mode holding the start, the signal injected as
   the velocity feed-forward (between K_p and the velocity loop) [rad/s].
 
+At a nut speed v != 0 (velocity mode only: velocity_command, the velocity
+loop, external_force under mode velocity) the model starts on the steady
+sliding state of the stability analysis (:func:`leadscrew_sim.core.steady.place_sliding`)
+and the signal rides on the velocity reference that holds v.
+
 It returns (input sequence, output sequence) for the FRF estimators: for a
 loop quantity the injection d and the controller output's total u (the
 drive's torque or velocity reference): S = u / d, T = (d - u) / d,
@@ -28,6 +33,9 @@ import numpy as np
 
 from ...core.drive_modes import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
 from ...core.model import LeadScrewModel
+from ...core.params import ParameterError
+from ...core.steady import place_sliding
+from ..stability.operating_point import operating_point
 from .plant import rest_load
 
 __all__ = ['OUTPUT_COLUMNS', 'run_signal']
@@ -67,7 +75,24 @@ def _rows(model, mode, n):
     return rows
 
 
-def run_signal(params, where, u, dt, mode='position', output='motor_velocity'):
+def _sliding(model, where, mode, speed, n, dt):
+    """Place the model on steady sliding at speed [m/s]; return its velocity command (theta)."""
+    p = model.params
+    if where not in ('velocity_command', 'velocity_loop') and not (
+            where == 'external_force' and mode == 'velocity'):
+        raise ParameterError('speed', f'{speed!r} m/s: a simulated measurement while sliding '
+                             'takes the velocity loop (velocity_command, --loop velocity, or '
+                             'external_force with mode velocity)')
+    room = (p.stroke_max if speed > 0 else p.stroke_min) - p.initial_position
+    if abs(speed) * n * dt >= 0.9 * abs(room):
+        raise ParameterError('speed', f'{speed!r} m/s for {n * dt:.3g} s travels beyond 90 % '
+                             f'of the {abs(room):.4g} m to the end stop')
+    op = operating_point(p, speed, 'velocity')
+    place_sliding(model, op)
+    return p.hand_sign * op['w_ref']
+
+
+def run_signal(params, where, u, dt, mode='position', output='motor_velocity', speed=0.0):
     """
     Run the model under signal u (one value per step) at ``where``; return (input, output).
 
@@ -85,6 +110,8 @@ def run_signal(params, where, u, dt, mode='position', output='motor_velocity'):
         Drive mode under an external force: 'torque', 'velocity' or 'position'.
     output : str
         The output name (ignored for a loop: the controller output comes back).
+    speed : float
+        Nut speed of the operating point [m/s] (0: at rest; else velocity mode only).
 
     Returns
     -------
@@ -97,13 +124,15 @@ def run_signal(params, where, u, dt, mode='position', output='motor_velocity'):
     n = len(u)
     hs, rt = p.hand_sign, p.lead_ratio
     forces = None
+    w0 = _sliding(model, where, mode, speed, n, dt) if speed else 0.0
     if where == 'torque':
         res = model.run(_holding_torque(p) + u)
         return u, res[OUTPUT_COLUMNS[output]]
     if where in ('velocity_command', 'velocity_loop'):
         rows = _rows(model, 'velocity', n)
+        rows[:, 2] = w0
         if where == 'velocity_command':
-            rows[:, 2] = hs * u / rt
+            rows[:, 2] += hs * u / rt
         else:
             rows[:, 3] = u
     elif where in ('position_command', 'position_loop'):
@@ -114,6 +143,8 @@ def run_signal(params, where, u, dt, mode='position', output='motor_velocity'):
             rows[:, 2] = u
     else:                                   # external_force
         rows = _rows(model, mode, n)
+        if mode == 'velocity':
+            rows[:, 2] = w0
         forces = np.ascontiguousarray(u, dtype=float)
     res = model.run(None, forces, commands=rows)
     if where == 'velocity_loop':

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from ...core.drive_control import drive_period
 from ...core.params import ParameterError
 from .broadband import chirp_response, multisine_response
 from .linear import closed_loop, INPUTS, LOOPS, MODES, OUTPUTS, QUANTITIES, SAMPLINGS
@@ -21,8 +22,8 @@ from .parallel import run_points
 from .response import FrequencyResponse
 from .sine import _loop_pair, grid_frequency
 
-__all__ = ['check_request', 'default_amplitude', 'frequencies', 'linear_response', 'METHODS',
-           'simulated_response']
+__all__ = ['check_request', 'default_amplitude', 'frequencies', 'linear_response',
+           'measurement_step', 'METHODS', 'simulated_response']
 
 METHODS = ('sine', 'chirp', 'multisine')
 
@@ -124,6 +125,21 @@ def linear_response(params, input=None, output=None, loop=None, quantity=None,
                              notes, poles=sys_c.poles(), zeros=sys_c.zeros())
 
 
+def measurement_step(params, dt, loop=None):
+    """
+    Return the step [s] a simulated measurement runs at: dt, or for a loop one drive period.
+
+    A loop quantity is measured at the drive period, as a drive's own tuning
+    tool samples it (the injection and the controller output then pair
+    exactly, whatever the step rate); dt when the drive period does not map
+    onto itself on the substep grid.
+    """
+    if loop is None:
+        return dt
+    td = drive_period(params, dt)
+    return td if abs(drive_period(params, td) - td) <= 1e-12 * td else dt
+
+
 def _settle_time(params, input, loop, speed, mode):
     """Return the settling time [s]: 4 time constants of the slowest mode, within [0.05, 1]."""
     try:
@@ -164,7 +180,8 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
     dt : float
         Step [s].
     speed : float
-        Only 0: the simulated measurement starts at rest.
+        Nut speed of the operating point [m/s]: 0 starts at rest; else the
+        run starts sliding (sine dwell, velocity loop only; see :mod:`.drive_runs`).
     mode : str, optional
         Drive mode under an external force (default position).
     settle, periods : int
@@ -176,12 +193,10 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
     _one_of('method', method, METHODS)
     amps = [default_amplitude(params, input, loop)] if amplitudes is None else list(amplitudes)
     check_request(input, output, loop, quantity, fmin, fmax, points, amps, dt)
-    if speed != 0.0:
-        raise ParameterError('speed', f'{speed!r} m/s: the simulated measurement starts at '
-                             'rest (speed 0); the linear model takes a speed')
     mode = mode or 'position'
     _one_of('mode', mode, MODES)
     where = f'{loop}_loop' if loop else input
+    dt = measurement_step(params, dt, loop)
     name_in, name_out = (where, quantity) if loop else (input, output)
     settle_time = _settle_time(params, input, loop, speed, mode)
     if int(settle) < 0 or int(periods) < 1:
@@ -192,7 +207,7 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
         f = np.unique([grid_frequency(fi, dt)[0] for fi in frequencies(fmin, fmax, points)])
         tasks = [dict(where=where, output=output, frequency=fi, amplitude=a, dt=dt,
                       settle=settle, periods=periods, settle_time=settle_time, mode=mode,
-                      quantity=quantity) for a in amps for fi in f]
+                      quantity=quantity, speed=speed) for a in amps for fi in f]
         pts = run_points(params, tasks, workers, scheduler)
         for i, a in enumerate(amps):
             rows = _merge(pts[i * len(f):(i + 1) * len(f)])
@@ -203,6 +218,9 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
                 [f'sine dwell: frequencies on the {1.0 / dt:g} Hz step grid, {settle} periods '
                  f'(at least {settle_time:.3g} s) discarded, {periods} kept']))
         return out
+    if speed != 0.0:
+        raise ParameterError('speed', f'{speed!r} m/s: {method} runs start at rest (speed 0); '
+                             'the sine dwell and the linear model take a speed')
     pair = (lambda u, y: _loop_pair(u, y, quantity)) if loop else None
     for a in amps:
         if method == 'multisine':

@@ -72,7 +72,7 @@ def _loop_pair(u, y, quantity):
 
 
 def sine_point(params, where, output, frequency, amplitude, dt=1e-3, settle=3, periods=5,
-               settle_time=0.1, mode='position', quantity=None):
+               settle_time=0.1, mode='position', quantity=None, speed=0.0):
     """
     Return one sine dwell point: dict(frequency [Hz], response, coherence, amplitude).
 
@@ -98,6 +98,8 @@ def sine_point(params, where, output, frequency, amplitude, dt=1e-3, settle=3, p
         Drive mode under an external force.
     quantity : str, optional
         'L', 'S' or 'T' for a loop.
+    speed : float
+        Nut speed of the operating point [m/s] (see :mod:`.drive_runs`).
 
     """
     f, n_p = grid_frequency(frequency, dt)
@@ -105,7 +107,7 @@ def sine_point(params, where, output, frequency, amplitude, dt=1e-3, settle=3, p
     n = n_p * (n_settle + int(periods))
     t = np.arange(1, n + 1) * dt
     u = amplitude * np.sin(2.0 * math.pi * f * t)
-    ui, y = run_signal(params, where, u, dt, mode, output)
+    ui, y = run_signal(params, where, u, dt, mode, output, speed)
     if quantity is not None:
         ui, y = _loop_pair(ui, y, quantity)
     if not np.isfinite(y).all():
