@@ -62,8 +62,8 @@ def compare(resp, oracle):
 
 
 @pytest.mark.timeout(120)
-def test_a_chirp_sent_over_dds_and_recorded_gives_the_sine_dwell_response(run_exe, tmp_path,
-                                                                        monkeypatch):
+def test_a_chirp_sent_over_dds_and_recorded_gives_the_sine_dwell_response(
+        run_exe, tmp_path, monkeypatch):
     monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
     args = ['--ros-args', '-p', f'record_dir:={tmp_path}', '-p', 'record_prefix:=fr',
             '-p', 'preset:=tr12x3', '-p', 'clock_mode:=stepped', '-p', 'real_time_factor:=1.0',

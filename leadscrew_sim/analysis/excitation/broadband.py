@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from .base import Builder, nut_speed_limit, Profile, ProfileError, Segment, stroke_room
+from .multisine_design import low_crest_phases, multisine_peak
 from ..freqresp import signals
 
 __all__ = ['BROADBAND', 'Chirp', 'COMMANDS', 'Multisine', 'drive_bandwidths']
@@ -387,8 +388,8 @@ class Chirp(_Broadband):
 
     def fades(self, o):
         """Return (one period of fmin, ten of fmax), each at most a tenth of the sweep [s]."""
-        return min(1.0 / o['fmin'], 0.1 * o['duration']), min(10.0 / o['fmax'],
-                                                               0.1 * o['duration'])
+        tenth = 0.1 * o['duration']
+        return min(1.0 / o['fmin'], tenth), min(10.0 / o['fmax'], tenth)
 
     def shape(self, tau, o):
         """Return sin(phi(tau)) of :func:`..freqresp.signals.chirp`."""
@@ -458,12 +459,8 @@ class Multisine(_Broadband):
         """
         Return (line frequencies [Hz], phases [rad], gain) of the multisine, peak 1.
 
-        The phases start from Schroeder's and are improved by clipping
-        iterations (a low crest factor on any set of lines): the signal of
-        unit lines is clipped at 90 % of its peak and the lines' phases of the
-        clipped signal kept, :data:`_CLIP_ITERATIONS` times; the set with the
-        lowest crest factor on the grid wins. The gain makes the peak 1: the
-        grid's largest samples refined by Newton steps on s'(t) = 0.
+        Phases of a low crest factor and the gain that makes the peak 1:
+        :mod:`.multisine_design`.
         """
         o = self.options if o is None else o
         key = (o['fmin'], o['fmax'], o['period'], o['lines'])
@@ -471,23 +468,8 @@ class Multisine(_Broadband):
         if cache and cache[0] == key:
             return cache[1]
         f = self.frequencies(o)
-        h = np.rint(f * o['period']).astype(int)
-        n = 1 << int(math.ceil(math.log2(max(64, 8 * h[-1]))))
-        ph = _clipped_phases(h, n, signals.schroeder_phases(len(f)))
-        t = np.arange(n) * (o['period'] / n)
-        s = signals.multisine(t, f, 1.0, ph)
-        w = 2.0 * math.pi * f
-        peak = 0.0
-        for i in np.argsort(-np.abs(s))[:8]:
-            x = t[i]
-            for _ in range(8):                  # Newton on s'(t) = 0
-                d1 = -(w * np.sin(w * x + ph)).sum()
-                d2 = -(w * w * np.cos(w * x + ph)).sum()
-                if d2 == 0.0:
-                    break
-                x -= d1 / d2
-            peak = max(peak, abs(float(signals.multisine(np.array([x]), f, 1.0, ph)[0])),
-                       abs(s[i]))
+        ph = low_crest_phases(f, o['period'])
+        peak = multisine_peak(f, ph, o['period'])
         out = (f, ph, 1.0 / peak)
         object.__setattr__(self, '_design', (key, out))
         return out
@@ -496,25 +478,6 @@ class Multisine(_Broadband):
         """Return the multisine with peak 1 (:meth:`design`)."""
         f, ph, gain = self.design(o)
         return gain * signals.multisine(tau, f, 1.0, ph)
-
-
-#: Clipping iterations of a multisine's phases.
-_CLIP_ITERATIONS = 100
-
-
-def _clipped_phases(h, n, start):
-    """Return the phases [rad] of unit lines at bins h of an n-point period, low crest factor."""
-    best, ph = (math.inf, start), start
-    for _ in range(_CLIP_ITERATIONS):
-        spec = np.zeros(n // 2 + 1, dtype=complex)
-        spec[h] = np.exp(1j * ph)
-        x = np.fft.irfft(spec, n)
-        crest = np.abs(x).max() / math.sqrt(float(np.mean(x * x)))
-        if crest < best[0]:
-            best = (crest, ph)
-        lim = 0.9 * np.abs(x).max()
-        ph = np.angle(np.fft.rfft(np.clip(x, -lim, lim))[h])
-    return best[1]
 
 
 #: The broadband profiles by name.
