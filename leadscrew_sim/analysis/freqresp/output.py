@@ -89,8 +89,7 @@ def plot_bode(path, responses, linear=None, title=None):
         ph = linear.phase_deg
         if ref is not None and np.isfinite(ref):   # the same branch of the phase
             ph = ph - 360.0 * np.round((ph[0] - ref) / 360.0)
-        am.semilogx(linear.frequency, linear.magnitude_db, 'k--', lw=1.2,
-                    label=f'linear model ({linear.notes[0] if linear.notes else ""})'[:70])
+        am.semilogx(linear.frequency, linear.magnitude_db, 'k--', lw=1.2, label='linear model')
         ap.semilogx(linear.frequency, ph, 'k--', lw=1.2)
     am.set_ylabel('magnitude [dB]')
     ap.set_ylabel('phase [deg]')
