@@ -17,7 +17,8 @@ from .options import NS, open_recording, RunError
 from ..analysis.freqresp import welch
 from ..io import cdr as C
 from ..io.mcap_reader import RecordingError
-from ..io.run_file import PARAMS_RECORD
+from ..core.params import ParameterError
+from ..io.run_file import PARAMS_RECORD, params_from_record
 
 __all__ = ['INPUTS', 'OUTPUTS', 'RecordingOptions', 'recording_response']
 
@@ -29,7 +30,8 @@ _POS, _VEL, _EFF = 2, 3, 4
 #: Output name -> (joint role, JointState field) of the states; None: not a joint value.
 OUTPUTS = {'motor_angle': ('motor', _POS), 'motor_velocity': ('motor', _VEL),
            'motor_torque': ('motor', _EFF), 'nut_position': ('nut', _POS),
-           'nut_velocity': ('nut', _VEL), 'thread_force': None, 'following_error': None}
+           'nut_velocity': ('nut', _VEL), 'thread_force': None,
+           'following_error': ('motor', _POS)}
 #: Joint of JointState commands of each kind, and its value field.
 _COMMAND_FIELD = {'torque': ('screw', _EFF), 'velocity': ('nut', _VEL),
                   'position': ('nut', _POS)}
@@ -51,8 +53,10 @@ class RecordingOptions:
         or ``external_force`` [N]; None: the kind of the one recorded command.
     output : str
         ``motor_angle`` [rad], ``motor_velocity`` [rad/s], ``nut_position`` [m],
-        ``nut_velocity`` [m/s], ``thread_force`` [N], ``following_error`` [m]
-        (position command less nut position) or ``motor_torque`` [N m].
+        ``nut_velocity`` [m/s], ``thread_force`` [N], ``following_error`` [rad]
+        (theta_ref - theta: the position command as a motor angle, h 2 pi / l
+        x_ref, less the motor angle; the drive's on its motor encoder) or
+        ``motor_torque`` [N m].
     fmin, fmax : float or None
         Band [Hz]; None: from the lowest bin to the Nyquist frequency.
     segments : int
@@ -71,6 +75,9 @@ class RecordingOptions:
         recording's prefix + ``screw_joint`` / ``nut_joint``).
     step_rate : float or None
         Step rate [Hz] of a foreign recording (default: from its state stamps).
+    params : ScrewParams or None
+        The axis (hand and lead) for ``following_error`` of a foreign
+        recording; a leadscrew_sim recording has its own.
 
     """
 
@@ -85,6 +92,7 @@ class RecordingOptions:
     screw_joint: str = None
     nut_joint: str = None
     step_rate: float = None
+    params: object = None
 
 
 def _check_options(o):
@@ -236,8 +244,6 @@ def _output_series(r):
                 np.array([f[0] for _s, f, _m in rows], dtype=float))
     if out == 'thread_force':
         return _joint_values(states, r.joints['nut'], _EFF, stamped=True)
-    if out == 'following_error':
-        return _joint_values(states, r.joints['nut'], _POS, stamped=True)
     role, field = OUTPUTS[out]
     joint = r.joints['screw']
     motor = joint.replace('screw_joint', 'motor_joint')
@@ -284,7 +290,7 @@ def recording_response(path, options=None):
         if not len(target[0]):
             raise RunError(f'{path}: the output following_error needs position commands; '
                            f'none on {topic}')
-        y = welch.held(*target, t0 + dt * np.arange(n) - dt) - y
+        y = _angle_per_metre(r) * welch.held(*target, t0 + dt * np.arange(n) - dt) - y
     u, y, dropped = _window(path, r.input, u, y, dt / NS)
     try:
         resp = welch.welch_response(
@@ -300,6 +306,20 @@ def recording_response(path, options=None):
                        f'{len(resp.frequency)} frequency bins of the band (need '
                        f'{MIN_BINS}); record an `excite chirp` or `excite multisine` run')
     return resp
+
+
+def _angle_per_metre(r):
+    """Return h 2 pi / l [rad/m]: motor angle per nut travel (NutMap's k), of the recorded axis."""
+    p = r.o.params
+    if p is None and r.meta is not None:
+        try:
+            p = params_from_record(r.meta)[0]
+        except ParameterError as exc:
+            raise RunError(f'{r.path}: recorded {exc}') from None
+    if p is None:
+        raise RunError(f'{r.path}: the output following_error of a foreign recording needs '
+                       'the axis (hand and lead): give RecordingOptions.params')
+    return p.hand_sign * 2.0 * math.pi / p.lead
 
 
 def _window(path, name, u, y, dt):

@@ -12,6 +12,7 @@ backlash, horizontal), so the chirp and the sines see the same response.
 The offline part (no ROS) checks the one-line errors on recordings written
 by ``simulate``.
 """
+import math
 import os
 from pathlib import Path
 import signal
@@ -123,7 +124,11 @@ def runs(tmp_path_factory):
            '-o', d / 'chirp.mcap', '-q')
     cli_ok('simulate', *sets, '--velocity', '0.001', '--duration', '1', '-o',
            d / 'still.mcap', '-q')
-    return {'chirp': d / 'chirp.mcap', 'still': d / 'still.mcap'}
+    cli_ok('simulate', *sets, '--excite', 'chirp', '--excite-opt', 'command=position',
+           '--excite-opt', 'fmin=2', '--excite-opt', 'fmax=40', '--excite-opt', 'duration=3',
+           '-o', d / 'position.mcap', '-q')
+    return {'chirp': d / 'chirp.mcap', 'still': d / 'still.mcap',
+            'position': d / 'position.mcap'}
 
 
 @pytest.mark.parametrize('run, options, fragment', [
@@ -160,3 +165,17 @@ def test_a_simulated_chirp_recording_gives_the_sine_dwell_response(runs):
     # Noise-free and linear: the estimate's own bias (Hann leakage of the
     # transients over 2 s) stays well inside the issue's 1 dB and 5 deg.
     assert np.all(np.abs(db) <= 0.3) and np.all(np.abs(deg) <= 2.0), (db, deg)
+
+
+def test_the_following_error_is_the_command_as_a_motor_angle_less_the_motor_angle(runs):
+    # following_error = h 2 pi / l x_ref - theta [rad] on the same steps, so its
+    # H1 is h 2 pi / l - H1(motor_angle) bin by bin (H1 is linear in the output):
+    # the hand sign and the lead of doc/model.md section 3 (tr12x3: right hand,
+    # 3 mm), to rounding.
+    p = linear_params()
+    k = -2 * math.pi / 0.003
+    assert p.hand_sign == -1 and p.lead == 0.003
+    fe = recording_response(runs['position'], RecordingOptions(output='following_error'))
+    th = recording_response(runs['position'], RecordingOptions(output='motor_angle'))
+    assert fe.input == 'position_command' and np.array_equal(fe.frequency, th.frequency)
+    assert np.max(np.abs(fe.response - (k - th.response))) < 1e-9 * abs(k)
