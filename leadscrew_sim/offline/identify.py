@@ -17,30 +17,13 @@ import dataclasses
 import math
 import time
 
-import numpy as np
-
 from .identify_inputs import fit_names, start_params
 from .identify_problem import Problem
 from .options import open_recording, RunError
 from ..analysis.identify.bootstrap import bootstrap
+from ..analysis.identify.degeneracy import motion_degeneracies
 from ..analysis.identify import fit as ident
 from ..core.params import ScrewParams
-
-
-def hints(cols):
-    """Return name -> why this run cannot show the parameter, from a re-simulation's columns."""
-    out = {}
-    contact = np.asarray(cols['contact'])
-    if len(np.unique(contact[contact != 0])) < 2:
-        out['backlash'] = 'the thread contact never changed flank (no load reversal)'
-    stick = np.asarray(cols['stick_a'])
-    breaks = np.count_nonzero((stick[:-1] == 1) & (stick[1:] == 0))
-    if breaks == 0:
-        out['mu_s'] = 'the thread never broke away from standstill'
-    slide = np.abs(np.asarray(cols['sliding_velocity']))
-    if slide.max(initial=0.0) == 0.0:
-        out['mu_k'] = out['stribeck_velocity'] = out['mu_viscous'] = 'the thread never slid'
-    return out
 
 
 def horizons(problem):
@@ -150,14 +133,16 @@ def _fit(plan, rescan=False):
     Fit the plan's problem from its start; return (FitResult, initial and final columns, misfit).
 
     With restarts at rests the steps compared are those the rests determine at
-    the fitted values, and the fit is repeated while they change; a signal
+    the fitted values, and the fit is repeated while they change; so it is
+    when the motion's degeneracies (:mod:`..analysis.identify.degeneracy`) at the
+    fit differ from those at the start; a signal
     the model explains only to an RMS above its noise is then weighted by
     that RMS and the fit repeated. ``misfit``: why the fit does not explain
     the recording ('' when it does).
     """
     problem = plan.problem
     initial = problem.replay({})
-    why = hints(problem.compared(initial))
+    why = motion_degeneracies(problem.compared(initial))
     res = ident.fit(problem.residuals, plan.coords, horizons=horizons(problem), hints=why,
                     max_nfev=plan.max_nfev, profile=problem.anchoring is not None,
                     rescan=rescan, jac_steps=problem.jac_steps, exact=problem.exact)
@@ -167,7 +152,14 @@ def _fit(plan, rescan=False):
             break
         res = _refit(plan, res, why)
         fitted = dict(zip(res.names, res.values))
+    if problem.loop_noise:          # the drive loop's spread at the fitted values
+        problem.add_loop_noise(fitted)
     final = problem.replay(fitted)
+    seen = motion_degeneracies(problem.compared(final))
+    if set(seen) != set(why):       # the motion at the fit shows other events than at the start
+        why = seen
+        res = _refit(plan, res, why)
+        final = problem.replay(dict(zip(res.names, res.values)))
     problem.raised = problem.measurements.reweight(final)
     if problem.raised:              # refit with those signals' weights at their rms
         res = _refit(plan, res, why)

@@ -5,12 +5,19 @@ The oracles are physical, not the verdicts of identify's own report: a nut
 driven one way at constant speed never changes thread flank, so the run
 cannot determine the backlash; an axis under zero torque holds still, so
 its recording determines no friction and no backlash, whether its sensors
-are ideal (exact data) or a 16-bit encoder with noise.
+are ideal (exact data) or a 16-bit encoder with noise; a torque well inside
+the static band never breaks the thread away, so the static friction is
+only bounded; one sliding speed gives one friction torque, which the
+Stribeck velocity and the viscous slope cannot be told from.
 """
+import importlib
 import io
 
 from helpers import cli_ok
+from leadscrew_sim import load_preset
+from leadscrew_sim.io.mcap_reader import Recording
 from leadscrew_sim.offline.identify_progress import FitProgress
+import numpy as np
 import pytest
 import yaml
 
@@ -99,3 +106,90 @@ def test_progress_only_on_a_terminal():
     text = tty.getvalue()
     assert 'fit; 13 re-simulations; RMS/sigma screw_angle 1.25' in text
     assert text.endswith('\r\x1b[K')
+
+
+#: A 16-bit encoder with noise of about one count and a 1 um scale with half a um of noise.
+SENSORS = ('--set', 'encoder_counts=65536', '--set', 'encoder_noise=5e-5',
+           '--set', 'scale_resolution=1e-6', '--set', 'scale_noise=5e-7')
+
+#: The degenerate motions: (preset, simulate's input and truth, fitted parameters, the
+#: parameters the motion cannot determine -> a phrase of the reason).
+#: - one_way: the nut driven up at 2 mm/s (against the payload's weight) for 1.5 s: the
+#:   load never reverses, so the thread stays on one flank;
+#: - inside_band: stick_slip's coupling wound by torques of -0.12 and +0.08 N m, a quarter
+#:   of its static band's edges (-0.43 and +0.22 N m by the quasi-static closed form): the
+#:   thread never breaks away, only the motor moves;
+#: - one_speed: the nut held at 5 mm/s (thread sliding at 55 mm/s, 55 Stribeck velocities).
+DEGENERATE = {
+    'one_way': ('tr12x3', ('--velocity', 0.002, '--set', 'mu_k=0.12'),
+                'mu_k,backlash', {'backlash': 'never reverses'}),
+    'inside_band': ('stick_slip', ('--torque-csv', 'band.csv', '--set', 'mu_s=0.35'),
+                    'mu_s,mu_k', {'mu_s': 'never breaks away', 'mu_k': 'never slid'}),
+    'one_speed': ('tr12x3', ('--velocity', 0.005, '--set', 'mu_k=0.12'),
+                  'mu_k,stribeck_velocity,mu_viscous',
+                  {'stribeck_velocity': 'single speed', 'mu_viscous': 'single speed'}),
+}
+
+
+@pytest.fixture(scope='module')
+def degenerate(tmp_path_factory):
+    """Return case -> (recording, fit_recording's result) of each degenerate motion (once)."""
+    tmp = tmp_path_factory.mktemp('degenerate')
+    t = np.linspace(0.0, 1.5, 151)
+    torque = np.interp(t, [0.0, 0.5, 1.0, 1.25, 1.5], [0.0, -0.12, 0.0, 0.08, 0.0])
+    (tmp / 'band.csv').write_text(''.join(f'{float(a)!r},{float(b)!r}\n'
+                                          for a, b in zip(t, torque)))
+    main = importlib.import_module('leadscrew_sim.cli.main')
+    from leadscrew_sim.offline.identify import fit_recording
+    out = {}
+    for case, (preset, inputs, fit, _why) in DEGENERATE.items():
+        inputs = [str(tmp / a) if str(a).endswith('.csv') else a for a in inputs]
+        for noisy in (False, True):
+            rec = tmp / f'{case}_{int(noisy)}.mcap'
+            cli_ok('simulate', '--preset', preset, *inputs, '--duration', 1.5, '-q', '-o',
+                   rec, *(SENSORS if noisy else ()))
+            args = main.build_parser().parse_args(['identify', str(rec), '--fit', fit])
+            out[case, noisy] = rec, fit_recording(args)
+    return out
+
+
+@pytest.mark.parametrize('noisy', (False, True), ids=('exact', 'noisy'))
+@pytest.mark.parametrize('case', sorted(DEGENERATE))
+def test_a_degenerate_motion_leaves_its_parameter_not_identifiable(degenerate, case, noisy):
+    """Each parameter the motion cannot show: 'not identifiable', the reason, its start."""
+    preset, _inputs, _fit, why = DEGENERATE[case]
+    rec, out = degenerate[case, noisy]
+    res, start = out['res'], load_preset(preset)
+    for name, phrase in why.items():
+        vd = res.verdict(name)
+        assert vd.status == 'not identifiable' and not vd.fitted, (name, vd)
+        assert vd.reason.startswith('not identifiable: the ') and phrase in vd.reason, vd
+        assert res.value(name) == getattr(start, name)
+    params = out['params']
+    for name in why:
+        assert getattr(params, name) == getattr(start, name)
+    if case == 'inside_band':
+        # the oracle that the thread never broke away: the scale readings spread as their
+        # noise and resolution do (sigma 0.58 um; 1.5 sigma allows for the spread's own
+        # scatter), or not at all on ideal sensors; a breakaway would move the nut by mm
+        x = _joint_positions(rec, 'nut_joint')
+        assert np.std(x) <= 1.5 * 5.8e-7, np.std(x)
+    else:
+        # the kinetic friction, which the sliding does show, is fitted (the truth 0.12 is
+        # 20 % from the start 0.15: a fit that moved it found it within the issue's 1 %)
+        assert res.verdict('mu_k').fitted
+        assert abs(res.value('mu_k') - 0.12) <= 0.01 * 0.12
+
+
+def _joint_positions(path, joint):
+    """Return the recorded positions [m] of ``joint`` in the joint states of a recording."""
+    from leadscrew_sim.io import cdr
+    rec = Recording(path)
+    topic = next(t for t, ty in rec.topic_types.items() if ty == 'sensor_msgs/msg/JointState'
+                 and t.endswith('joint_states'))
+    out = []
+    for _t, tp, data in rec.messages:
+        if tp == topic:
+            _s, names, pos, _v, _e = cdr.decode_joint_state(data)
+            out.append(pos[list(names).index(joint)])
+    return np.array(out)

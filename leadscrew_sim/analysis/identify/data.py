@@ -26,12 +26,19 @@ weighted residuals, in the optimiser's coordinates):
 
 A parameter is identified only if moving it across its interval changes the
 signals by more than their noise (|J column| x half-width > 1); exact data
-(weights at the numerical floor) have no interval (:func:`_exact`).
+(weights at the numerical floor) have no interval (:func:`_exact`). A
+parameter the motion cannot show (:mod:`.degeneracy`: no reversal, no
+breakaway, a single sliding speed) is not identifiable, whatever its column.
 """
 import dataclasses
 import math
 
 import numpy as np
+
+from .covariance import sandwich, scaled_inverse
+
+__all__ = ['Coordinate', 'interval_jacobian', 'judge', 'Measurements', 'noise_estimate',
+           'noiseless_sensors', 'sandwich', 'scaled_inverse', 'sensor_sigma', 'Verdict']
 
 #: Largest relative half-width of a 95 % interval of an identified parameter.
 REL_MAX = 0.5
@@ -127,75 +134,6 @@ class Verdict:
         return self.identified or self.exact
 
 
-def scaled_inverse(a):
-    """
-    Return the inverse of the normal matrix ``a`` = J^T J, equilibrated first.
-
-    The columns of J differ by many decades (a friction coefficient against a
-    backlash the data hardly see), so ``a`` is inverted as D^-1 (D^-1 a D^-1)^-1
-    D^-1 with D its root diagonal; a zero column (no sensitivity) gets an
-    infinite variance instead of the zero a pseudo-inverse would give.
-    """
-    d = np.sqrt(np.diag(a))
-    zero = d == 0.0
-    ds = np.where(zero, 1.0, d)
-    inv = np.linalg.pinv(a / np.outer(ds, ds), rcond=1e-12) / np.outer(ds, ds)
-    inv[zero, :] = 0.0
-    inv[:, zero] = 0.0
-    inv[zero, zero] = np.inf
-    return inv
-
-
-def _bartlett_bandwidth(scores):
-    """Return Andrews' (1991) AR(1) plug-in bandwidth of Bartlett weights for ``scores``."""
-    n = len(scores)
-    num = den = 0.0
-    for g in scores.T:
-        a, b = g[:-1], g[1:]
-        ss = float(a @ a)
-        if ss == 0.0:
-            continue
-        rho = min(0.97, max(-0.97, float(a @ b) / ss))
-        var = float(np.mean((b - rho * a) ** 2))
-        num += 4.0 * rho ** 2 * var ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
-        den += var ** 2 / (1.0 - rho) ** 4
-    if den == 0.0:
-        return 0
-    return int(min(n // 4, math.ceil(1.1447 * (num / den * n) ** (1.0 / 3.0))))
-
-
-def sandwich(jac, r, shape):
-    """
-    Return (covariance, bandwidth): the HAC sandwich covariance of a least-squares fit.
-
-    Parameters
-    ----------
-    jac : numpy.ndarray
-        Jacobian (n_signals * n_time, p) of the flattened residuals.
-    r : numpy.ndarray
-        The flattened residuals at the solution.
-    shape : tuple
-        (n_signals, n_time) of the residual matrix.
-
-    """
-    p = jac.shape[1]
-    scores = (jac.reshape(shape + (p,)) * r.reshape(shape)[:, :, None]).sum(axis=0)
-    bread = scaled_inverse(jac.T @ jac)
-    lag = _bartlett_bandwidth(scores)
-    meat = scores.T @ scores
-    for ell in range(1, lag + 1):
-        gam = scores[ell:].T @ scores[:-ell]
-        meat += (1.0 - ell / (lag + 1.0)) * (gam + gam.T)
-    n_used = int(np.count_nonzero(r)) or 1
-    p_eff = min(p, n_used - 1)
-    meat *= n_used / max(1, n_used - p_eff)      # small-sample factor, as s^2 divides by n - p
-    zero = ~np.isfinite(np.diag(bread))
-    b = np.where(np.isfinite(bread), bread, 0.0)
-    cov = b @ meat @ b
-    cov[zero, zero] = np.inf
-    return cov, lag
-
-
 def t_quantile(level, dof):
     """Return the two-sided quantile of the t distribution of ``dof`` degrees of freedom."""
     from scipy.stats import t
@@ -225,14 +163,16 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
     dof : int
         Degrees of freedom of the t quantile.
     hints : dict, optional
-        name -> why the data lack what the parameter needs.
+        name -> why the motion cannot determine it (:mod:`.degeneracy`): judged not
+        identifiable for that reason.
     exact : bool
         Exact data (ideal sensors): no statistical interval (:func:`_exact`).
 
     """
     hints = hints or {}
     if exact:
-        return [_exact(c, z[i], jac[:, i], hints) for i, c in enumerate(coords)]
+        return [_degenerate(c.name, hints) or _exact(c, z[i], jac[:, i])
+                for i, c in enumerate(coords)]
     tq = t_quantile(level, dof)
     jtj = jac.T @ jac
     inv = scaled_inverse(jtj)
@@ -250,15 +190,17 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
         col = float(np.sqrt(jtj[i, i]))
         vif = float(inv[i, i] * jtj[i, i]) if col > 0 else math.inf
         marginal = rel / math.sqrt(vif) if vif > 0 and math.isfinite(vif) else math.inf
-        hint = f'; {hints[c.name]}' if c.name in hints else ''
+        if c.name in hints:
+            out.append(_degenerate(c.name, hints))
+            continue
         if col == 0.0 or not math.isfinite(rel) and not math.isfinite(marginal):
             out.append(Verdict(c.name, False, 'no sensitivity: the re-simulated signals do '
-                               f'not change with it{hint}', math.nan, math.nan, math.nan,
+                               'not change with it', math.nan, math.nan, math.nan,
                                math.inf))
             continue
         moved = col * (zb - za) / 2.0     # the signals' change across the interval [noise]
         if rel <= REL_MAX and not moved > 1.0:
-            out.append(_unseen(c.name, rel, moved, hint, lower, upper, std))
+            out.append(_unseen(c.name, rel, moved, lower, upper, std))
             continue
         if rel <= REL_MAX:
             where = ''
@@ -271,7 +213,7 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
             continue
         if marginal > REL_MAX:
             reason = (f'too little sensitivity: even with every other parameter known the '
-                      f'data fix it only to +-{100 * marginal:.3g} %{hint}')
+                      f'data fix it only to +-{100 * marginal:.3g} %')
         else:
             others = [(abs(corr[i, j]), j) for j in range(len(coords)) if j != i]
             _c, j = max(others) if others else (0.0, i)
@@ -282,14 +224,21 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
     return out
 
 
-def _unseen(name, rel, moved, hint, lower, upper, std):
+def _unseen(name, rel, moved, lower, upper, std):
     """Return the Verdict of an interval across which the signals move less than the noise."""
     return Verdict(name, False, f'too little sensitivity: moving it across its interval (+-'
                    f'{100 * rel:.3g} %) changes the re-simulated signals by {moved:.3g} of their '
-                   f'noise, less than 1{hint}', lower, upper, std, rel)
+                   f'noise, less than 1', lower, upper, std, rel)
 
 
-def _exact(c, z, col, hints):
+def _degenerate(name, hints):
+    """Return the Verdict of a parameter the motion cannot show (None when it can)."""
+    if name not in hints:
+        return None
+    return Verdict(name, False, f'not identifiable: {hints[name]}', rel=math.inf)
+
+
+def _exact(c, z, col):
     """Return the Verdict on exact data: seen if +-REL_MAX moves the signals above the floor."""
     size = max(abs(c.to_value(z)), c.typical)
     dz = math.log1p(REL_MAX) if c.log else REL_MAX * size / c.scale
@@ -300,8 +249,7 @@ def _exact(c, z, col, hints):
                        f'{moved:.3g} times the numerical floor', exact=True)
     return Verdict(c.name, False, 'no sensitivity: moving it by '
                    f'+-{100 * REL_MAX:g} % changes the exact re-simulated signals by '
-                   f'{moved:.3g} of the numerical floor, less than 1'
-                   + (f'; {hints[c.name]}' if c.name in hints else ''), rel=math.inf)
+                   f'{moved:.3g} of the numerical floor, less than 1', rel=math.inf)
 
 
 def _interval(c, za, zb):
