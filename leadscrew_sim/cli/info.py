@@ -71,6 +71,9 @@ def _figures_profile(args, rec):
                            f'PROFILE ({", ".join(PROFILES)})')
     if name is not None and name not in PROFILES:
         raise RunError(f'--figures {name!r}: no such profile ({", ".join(PROFILES)})')
+    if name is not None and not getattr(PROFILES[name], 'figures', True):
+        raise RunError(f'--figures {name}: a frequency-response profile has no derived '
+                       f'figures (leadscrew_sim freqresp {args.file})')
     return name
 
 

@@ -89,6 +89,8 @@ class _Broadband(Profile):
     }
     EXTRA = {}
     kind = 'velocity'
+    #: No derived figures (``info --figures``): the frequency response is ``freqresp``'s.
+    figures = False
 
     def __init__(self, params, **options):
         """Take ``command`` (a code or torque/velocity/position), then validate as Profile."""
