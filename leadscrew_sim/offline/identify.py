@@ -72,6 +72,7 @@ def fit_recording(args, progress=None):
         coords = ident.coordinates(names, start)
     except ValueError as exc:
         raise RunError(f'--fit: {exc}') from None
+    problem.resolve_floor(coords)
     plan = Plan(problem, names, start, coords, args.max_nfev)
     weights = dict(problem.measurements.sigma)
     res, initial, final, misfit = _fit(plan)
@@ -87,9 +88,8 @@ def fit_recording(args, progress=None):
         res, initial, final, misfit = _rescanned(plan, weights, (res, initial, final, misfit))
         second = not misfit
     problem.bootstrap = {}
-    if misfit:
+    if misfit:      # final stays the rejected fit's: the report's RMS is the verdict's
         res = _reject(res, misfit)
-        final = problem.replay(dict(zip(res.names, res.values)))
     elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
             ident.sensor_sigma(ScrewParams()):
         problem.stage = 'bootstrap of the intervals'

@@ -27,6 +27,9 @@ SETUP_FIELDS = tuple(n for n in ScrewParams.names()
                      if n.startswith(('encoder_', 'scale_', 'fault_'))) + (
     'linear_scale', 'velocity_filter_time', 'sensor_seed', 'state_delay', 'command_delay')
 
+#: Relative parameter change below which exact data count a fit as the truth (its floor).
+RESOLUTION = 1e-6
+
 #: Seeds of the re-simulations that measure the drive loop's response to the sensor noise.
 LOOP_SEEDS = 3
 
@@ -131,6 +134,35 @@ class Problem:
             meas.sigma[name] = total
             self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
                                 f'sensor noise ({loop:.3g})')
+
+    def resolve_floor(self, coords):
+        """
+        Raise exact data's numerical floor to what the fit can resolve of ``coords``.
+
+        A noise-free recording's residual at the truth is 0, but a fit stops at
+        its tolerance, and a re-simulation changes in jumps (a breakaway a step
+        earlier) below it: a floor of 1e-9 of a signal's range is out of reach
+        of the right answer (the clean sweep's fit ends at 6 times it) and
+        turns it into a rejection. The floor of each signal becomes at least
+        the RMS change (offsets removed, the steps compared) of a
+        re-simulation at the start when every fitted parameter moves by
+        :data:`RESOLUTION` of itself (its typical size when 0), summed in
+        quadrature: values closer than that to the truth count as exact.
+        """
+        if not self.exact or not coords:
+            return
+        meas = self.measurements
+        base = meas.differences(self.replay({}))
+        total = np.zeros(len(meas.names))
+        for c in coords:
+            v = c.initial + RESOLUTION * (abs(c.initial) or c.typical)
+            d = meas.differences(self.replay({c.name: v})) - base
+            total += (d ** 2).sum(axis=1) / np.maximum(1, meas.mask.sum(axis=1))
+        for name, change in zip(meas.names, np.sqrt(total)):
+            if change > meas.sigma[name]:
+                meas.sigma[name] = float(change)
+                self.noise[name] = (float(change), FLOOR)
+        self.sigma0 = dict(meas.sigma)
 
     @property
     def jac_steps(self):
