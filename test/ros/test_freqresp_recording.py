@@ -179,3 +179,56 @@ def test_the_following_error_is_the_command_as_a_motor_angle_less_the_motor_angl
     th = recording_response(runs['position'], RecordingOptions(output='motor_angle'))
     assert fe.input == 'position_command' and np.array_equal(fe.frequency, th.frequency)
     assert np.max(np.abs(fe.response - (k - th.response))) < 1e-9 * abs(k)
+
+
+def foreign_copy(src, dst):
+    """
+    Write simulate's recording as another source would: mapped names, no parameters record.
+
+    Written with mcap_ros2 (not our writer): JointState on /robot/states with
+    the joints ``j_motor`` and ``j_carriage``, the velocity commands as
+    Float64 on /robot/cmd_vel.
+    """
+    from leadscrew_sim.io import cdr
+    from leadscrew_sim.io.mcap_reader import Recording
+    from leadscrew_sim.io.msgdefs import ros2msg_definition
+    from mcap_ros2.writer import Writer
+    rec = Recording(src, topics=['/joint_states', '/velocity_command'])
+    rename = {'screw_joint': 'j_motor', 'nut_joint': 'j_carriage'}
+    with open(dst, 'wb') as f:
+        w = Writer(f)
+        js = w.register_msgdef('sensor_msgs/msg/JointState',
+                               ros2msg_definition('sensor_msgs/msg/JointState'))
+        fl = w.register_msgdef('std_msgs/msg/Float64', ros2msg_definition('std_msgs/msg/Float64'))
+        for t, topic, data in rec.messages:
+            if topic == '/joint_states':
+                stamp, names, pos, vel, eff = cdr.decode_joint_state(data)
+                msg = {'header': {'stamp': {'sec': stamp // 10 ** 9,
+                                            'nanosec': stamp % 10 ** 9}, 'frame_id': ''},
+                       'name': [rename[n] for n in names], 'position': list(pos),
+                       'velocity': list(vel), 'effort': list(eff)}
+                w.write_message('/robot/states', js, msg, log_time=t, publish_time=t)
+            else:
+                w.write_message('/robot/cmd_vel', fl, {'data': cdr.decode_float64(data)},
+                                log_time=t, publish_time=t)
+        w.finish()
+
+
+def test_another_sources_recording_maps_its_topics_and_joints_as_identify(runs, tmp_path):
+    # The same data under other names, mapped by the options: the same response
+    # (the grid from the states' stamps instead of the parameters record).
+    path = tmp_path / 'foreign.mcap'
+    foreign_copy(runs['chirp'], path)
+    mapping = dict(state_topic='/robot/states', command_topic='/robot/cmd_vel',
+                   command_kind='velocity', screw_joint='j_motor', nut_joint='j_carriage')
+    got = recording_response(path, RecordingOptions(output='nut_velocity', **mapping))
+    own = recording_response(runs['chirp'], RecordingOptions(output='nut_velocity'))
+    assert got.input == 'velocity_command'
+    assert np.array_equal(got.frequency, own.frequency)
+    assert np.max(np.abs(got.response - own.response)) <= 1e-12 * np.abs(own.response).max()
+    # Without the mapping the states are not found: one line naming the topics.
+    with pytest.raises(RunError, match='no topic joint_states for the states'):
+        recording_response(path, RecordingOptions())
+    with pytest.raises(RunError, match='following_error of a foreign recording needs the axis'):
+        recording_response(path, RecordingOptions(output='following_error', **dict(
+            mapping, command_kind='position')))
