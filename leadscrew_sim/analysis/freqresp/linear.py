@@ -23,8 +23,8 @@ Three samplings (:data:`SAMPLINGS`):
   command held over each step, the output sampled at the step's end and
   paired with the input held over the step that ends there (the stamps'
   alignment): H(z) = C (I - Phi z^-1)^-1 Gamma + D, z = e^(jwT). Exact when
-  T is a whole number of drive periods; else the drive-sampled response
-  times the ratio of the two holds (noted).
+  T is a whole number of drive periods; else exact over the block of steps
+  after which the timing repeats (:mod:`.lifted`).
 
 The drive reads ideal sensors (the true motor angle and rate, or the nut
 position through the lead for ``drive_feedback: linear_scale``).
@@ -241,12 +241,6 @@ def _steps_per_period(p, dt, td):
     return k, abs(ratio - k) < 1e-9 * ratio
 
 
-def _hold(w, t):
-    """Return the hold over the period t [s] ending at the stamp: (e^(jwt) - 1) / (jwt)."""
-    x = 1j * w * t
-    return np.where(np.abs(x) > 0.0, np.expm1(x) / np.where(x == 0, 1, x), 1.0)
-
-
 class ClosedLoop:
     """
     The linearised axis from one input to one output: its systems and their responses.
@@ -317,11 +311,13 @@ class ClosedLoop:
         if sys_k is not None:
             return sys_k.response(f), [f'exact zero-order hold at the {1.0 / dt:.6g} Hz step, '
                                        'output at the step end (stamps aligned)']
+        from .lifted import block_ratio, lifted_response
         td = drive_period(self.params, dt)
-        w = 2.0 * math.pi * f
-        h = self.system('drive', dt).response(f) * _hold(w, dt) / _hold(w, td)
-        return h, [f'step {dt:g} s is not a whole number of drive periods ({td:.6g} s): '
-                   'drive-sampled response times the ratio of the holds']
+        c, d = self.drive.sampled_output(self.output)
+        a, b = block_ratio(dt, td)
+        return lifted_response(self.drive, c, d, f, dt, td), [
+            f'step {dt:g} s = {a}/{b} drive periods ({td:.6g} s): the periodic steady state '
+            f'over {b} steps, first harmonic at the step ends (stamps aligned)']
 
 
 def closed_loop(params, input, output, speed=0.0, mode=None):
