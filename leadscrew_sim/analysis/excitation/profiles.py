@@ -30,6 +30,7 @@ import math
 
 from .base import (Builder, check_speed, nut_speed_limit, stroke_room, Profile,
                    ProfileError, Segment, STROKE_MARGIN)
+from .resolution import RESOLVE, stribeck_notes, velocity_quantum
 
 __all__ = ['PROFILES', 'ProfileError', 'Segment', 'make_profile', 'BreakawayRamp',
            'SpeedSweep', 'Reversals', 'Iso230', 'static_breakaway']
@@ -189,6 +190,10 @@ class SpeedSweep(Profile):
     levels for the same times, so the nut returns to where it started.
     ``v_min`` defaults to a nut speed whose thread sliding speed
     v / sin(lambda) is a quarter of the Stribeck velocity.
+
+    With a quantised encoder (:mod:`.resolution`) ``v_min`` is at least
+    RESOLVE velocity quanta and each level starts from a ``rest``: each
+    breaks away (mu_s) and passes the Stribeck range (:meth:`notes`).
     """
 
     name = 'sweep'
@@ -202,6 +207,7 @@ class SpeedSweep(Profile):
         'measure': ('s', 'rest of each level (the measurement window)', 0.01, 3600.0, False),
         'first': ('-', 'first direction: +1 toward +x, -1 toward -x', -1, 1, True),
         'stop': ('s', 'zero speed at the end', 0.0, 3600.0, False),
+        'rest': ('s', 'standstill before each level (a breakaway each)', 0.0, 3600.0, False),
     }
 
     def defaults(self, params, given):
@@ -216,11 +222,13 @@ class SpeedSweep(Profile):
             The options the user gave, by name (SI units).
 
         """
-        v_min = max(1e-6, 0.25 * params.stribeck_velocity * math.sin(params.lead_angle))
+        v_min = max(1e-6, 0.25 * params.stribeck_velocity * math.sin(params.lead_angle),
+                    RESOLVE * velocity_quantum(params))
         lo, hi = stroke_room(params)
         x0 = params.initial_position
         first = 1 if hi - x0 >= x0 - lo else -1
-        o = dict(v_min=v_min, levels=8, settle=0.3, measure=0.7, first=first, stop=0.3)
+        o = dict(v_min=v_min, levels=8, settle=0.3, measure=0.7, first=first, stop=0.3,
+                 rest=0.2 if params.encoder_counts else 0.0)
         try:                    # v_max to fit the options given (checked later)
             o.update({k: float(v) for k, v in given.items() if k in o})
             o['levels'] = max(1, int(o['levels']))
@@ -277,9 +285,23 @@ class SpeedSweep(Profile):
         b = Builder(0.0)
         for s in (o['first'], -o['first']):
             for v in reversed(self.speeds(o)):
+                if o['rest'] > 0.0:
+                    b.hold(o['rest'], 'rest', s, 0.0)
                 b.hold(o['settle'] + o['measure'], f'level {s * v:+.4g} m/s', s, s * v)
         b.hold(o['stop'], 'stop', 0, 0.0)
         return b.out
+
+    def notes(self):
+        """Return what the axis's encoder cannot resolve with this sweep (lines, maybe none)."""
+        return stribeck_notes(self.params)
+
+    def listing(self):
+        """Return the lines of ``excite --list``, with the :meth:`notes`."""
+        return super().listing() + ['  ' + n for n in self.notes()]
+
+    def describe(self):
+        """Return the one-line description, with the :meth:`notes`."""
+        return '; '.join([super().describe()] + self.notes())
 
 
 class Reversals(Profile):
