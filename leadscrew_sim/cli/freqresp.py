@@ -27,8 +27,11 @@ def _model_arguments(p):
     p.add_argument('--quantity', help='L | S | T (with --loop; default L)')
     p.add_argument('--mode', help='drive mode under --input external_force: torque | velocity '
                    '| position (default position)')
-    p.add_argument('--speed', type=float, default=0.0, help='operating point of --linear: nut '
-                   'speed [m/s] (default 0: at rest on the loaded flank)')
+    p.add_argument('--speed', type=float, default=0.0, help='operating point: nut speed [m/s] '
+                   '(default 0: at rest on the loaded flank; a sine dwell while sliding: the '
+                   'velocity loop only)')
+    p.add_argument('--rest', default='stuck', help='the linear model at rest: stuck (the '
+                   'thread held by stiction, default) | free (its friction left out)')
 
 
 def add_arguments(p):

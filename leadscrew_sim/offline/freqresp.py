@@ -67,7 +67,7 @@ def _linear(params, names, f, args, sampling, dt=None):
     inp, out, loop, qty = names
     dt = 1.0 / _get(args, 'step_rate', 1000.0) if dt is None else dt
     return linear_response(params, inp, out, loop, qty, f, _get(args, 'speed', 0.0), sampling,
-                           dt, _get(args, 'mode'))
+                           dt, _get(args, 'mode'), _get(args, 'rest', 'stuck'))
 
 
 def _recording(args):

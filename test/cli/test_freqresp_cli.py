@@ -91,6 +91,7 @@ def test_multisine_and_chirp_run(tmp_path):
     (['--loop', 'velocity', '--quantity', 'M'], ['quantity', 'M']),
     (['--method', 'prbs'], ['method', 'prbs', 'sine']),
     (['--set', 'nonsense=1'], ['nonsense']),
+    (['--linear', '--rest', 'loose'], ['rest', 'loose', 'stuck']),
 ])
 def test_bad_input_one_line(argv, words, capsys):
     rc = main(['freqresp', '-q', '--workers', '1'] + argv)

@@ -255,10 +255,12 @@ class ClosedLoop:
         Nut speed of the operating point [m/s]; 0: at rest on the loaded flank.
     mode : str, optional
         Drive mode for ``external_force`` (default 'position'); else the input's own.
+    rest : str
+        At rest: 'stuck' or 'free' thread (:func:`.plant.plant`).
 
     """
 
-    def __init__(self, params, input, output, speed=0.0, mode=None):
+    def __init__(self, params, input, output, speed=0.0, mode=None, rest='stuck'):
         """Build the plant and the drive's expressions (see the class doc)."""
         _check('input', input, INPUTS)
         _check('output', output, OUTPUTS)
@@ -268,7 +270,7 @@ class ClosedLoop:
             mode = INPUT_MODES[input]
         self.params, self.input, self.output, self.speed = params, input, output, speed
         self.mode = mode or 'position'
-        self.plant = plant(params, speed)
+        self.plant = plant(params, speed, rest)
         self.drive = _Drive(params, self.plant, self.mode, input)
         self.drive.output(output)            # refuses a following error without its loop
 
@@ -320,6 +322,6 @@ class ClosedLoop:
             f'over {b} steps, first harmonic at the step ends (stamps aligned)']
 
 
-def closed_loop(params, input, output, speed=0.0, mode=None):
+def closed_loop(params, input, output, speed=0.0, mode=None, rest='stuck'):
     """Return the :class:`ClosedLoop` from ``input`` to ``output`` (see the class)."""
-    return ClosedLoop(params, input, output, speed, mode)
+    return ClosedLoop(params, input, output, speed, mode, rest)

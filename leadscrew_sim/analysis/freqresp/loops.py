@@ -81,7 +81,7 @@ def _step_sensitivity(p, pl, loop, f, dt):
     return LinearSystem(a_k, b_k, c, d, dt).response(f)
 
 
-def loop_gain(params, loop, frequency, speed=0.0, sampling='drive', dt=1e-3):
+def loop_gain(params, loop, frequency, speed=0.0, sampling='drive', dt=1e-3, rest='stuck'):
     """
     Return L(f) of a loop (complex, dimensionless) and a note on its sampling.
 
@@ -100,6 +100,8 @@ def loop_gain(params, loop, frequency, speed=0.0, sampling='drive', dt=1e-3):
         when the step is whole drive periods; else as 'drive').
     dt : float
         Step [s] (sets the substep grid and so the drive period).
+    rest : str
+        At rest: 'stuck' or 'free' thread.
 
     """
     if loop not in LOOPS:
@@ -110,7 +112,7 @@ def loop_gain(params, loop, frequency, speed=0.0, sampling='drive', dt=1e-3):
     if p.velocity_gain <= 0.0 or (loop == 'position' and p.position_gain <= 0.0):
         raise ParameterError('velocity_gain' if p.velocity_gain <= 0.0 else 'position_gain',
                              'must be > 0 for the loop to exist')
-    pl = plant(p, speed)
+    pl = plant(p, speed, rest)
     if sampling == 'step':
         sens = _step_sensitivity(p, pl, loop, frequency, dt)
         if sens is not None:
@@ -124,7 +126,8 @@ def loop_gain(params, loop, frequency, speed=0.0, sampling='drive', dt=1e-3):
     return fn(p, pl, frequency, td), note
 
 
-def loop_response(params, loop, quantity, frequency, speed=0.0, sampling='drive', dt=1e-3):
+def loop_response(params, loop, quantity, frequency, speed=0.0, sampling='drive', dt=1e-3,
+                  rest='stuck'):
     """
     Return (H, note): L, S = 1 / (1 + L) or T = L / (1 + L) of a loop at f [Hz].
 
@@ -132,6 +135,6 @@ def loop_response(params, loop, quantity, frequency, speed=0.0, sampling='drive'
     """
     if quantity not in QUANTITIES:
         raise ParameterError('quantity', f'{quantity!r} is not one of {", ".join(QUANTITIES)}')
-    lg, note = loop_gain(params, loop, frequency, speed, sampling, dt)
+    lg, note = loop_gain(params, loop, frequency, speed, sampling, dt, rest)
     h = {'L': lg, 'S': 1.0 / (1.0 + lg), 'T': lg / (1.0 + lg)}[quantity]
     return h, note

@@ -86,7 +86,8 @@ def default_amplitude(params, input=None, loop=None):
 
 
 def linear_response(params, input=None, output=None, loop=None, quantity=None,
-                    frequency=None, speed=0.0, sampling='continuous', dt=1e-3, mode=None):
+                    frequency=None, speed=0.0, sampling='continuous', dt=1e-3, mode=None,
+                    rest='stuck'):
     """
     Return the :class:`FrequencyResponse` of the linearised axis.
 
@@ -108,17 +109,19 @@ def linear_response(params, input=None, output=None, loop=None, quantity=None,
         Step [s].
     mode : str, optional
         Drive mode under an external force (default position).
+    rest : str
+        At rest: 'stuck' (the thread held by stiction) or 'free' (its friction left out).
 
     """
     check_request(input, output, loop, quantity)
     _one_of('sampling', sampling, SAMPLINGS)
     f = np.asarray(frequency, dtype=float)
     if loop is not None:
-        h, note = loop_response(params, loop, quantity, f, speed, sampling, dt)
-        lg, _ = loop_gain(params, loop, f, speed, sampling, dt)
+        h, note = loop_response(params, loop, quantity, f, speed, sampling, dt, rest)
+        lg, _ = loop_gain(params, loop, f, speed, sampling, dt, rest)
         return FrequencyResponse(f, h, np.full(len(f), math.nan), math.nan, f'{loop}_loop',
                                  quantity, 'linear', [note], loop_gain=lg)
-    cl = closed_loop(params, input, output, speed, mode)
+    cl = closed_loop(params, input, output, speed, mode, rest)
     h, notes = cl.response(f, sampling, dt)
     sys_c = cl.system('continuous')
     return FrequencyResponse(f, h, np.full(len(f), math.nan), math.nan, input, output, 'linear',

@@ -15,7 +15,9 @@ Operating points (q sense, perturbations about them):
   the screw as x = -r_m cot(lambda) q (the friction force is the constraint's
   reaction) and only the contact's normal spring lets the screw turn. The
   bearing, guide and collar Coulomb terms are left out at rest (stuck, they
-  only add to the thread's lock).
+  only add to the thread's lock). ``rest='free'`` leaves the thread's
+  friction out instead: the axis a test large enough to break it loose sees
+  (between its reversals).
 
 :func:`plant` returns a :class:`Plant`: X' = A X + B_T T_c + B_F F with X the
 coordinates, their rates and the motor torque lag state (when tau_e > 0);
@@ -31,7 +33,10 @@ import numpy as np
 from ...core.params import ParameterError
 from ..stability.operating_point import operating_point
 
-__all__ = ['Plant', 'plant', 'rest_load']
+__all__ = ['Plant', 'plant', 'REST_STATES', 'rest_load']
+
+#: The thread at rest: stuck (stiction holds it), or free (friction left out).
+REST_STATES = ('stuck', 'free')
 
 
 @dataclass
@@ -139,7 +144,7 @@ def _second_order(p, op, stuck):
     return np.diag(mass), f, r, rr, im, iq, ix
 
 
-def plant(params, speed=0.0):
+def plant(params, speed=0.0, rest='stuck'):
     """
     Return the :class:`Plant` of the axis at rest (speed 0) or sliding at ``speed`` [m/s].
 
@@ -149,6 +154,8 @@ def plant(params, speed=0.0):
         The axis (single nut).
     speed : float
         Nut speed [m/s]; 0: at rest on the loaded flank.
+    rest : str
+        At rest: 'stuck' (the thread held by stiction when mu_s > 0) or 'free'.
 
     Raises
     ------
@@ -160,7 +167,9 @@ def plant(params, speed=0.0):
     p = params
     if speed == 0.0:
         op = _rest_op(p)
-        stuck = p.mu_s > 0.0
+        if rest not in REST_STATES:
+            raise ParameterError('rest', f'{rest!r} is not one of {", ".join(REST_STATES)}')
+        stuck = p.mu_s > 0.0 and rest == 'stuck'
     else:
         op = dict(operating_point(p, speed, 'ideal'), drive='velocity')
         stuck = False
