@@ -22,6 +22,9 @@ loop, external_force under mode velocity) the model starts on the steady
 sliding state of the stability analysis (:func:`leadscrew_sim.core.steady.place_sliding`)
 and the signal rides on the velocity reference that holds v.
 
+A run in which the drive latches a fault (following error, torque limit)
+returns a NaN output: no measurement at that point.
+
 It returns (input sequence, output sequence) for the FRF estimators: for a
 loop quantity the injection d and the controller output's total u (the
 drive's torque or velocity reference): S = u / d, T = (d - u) / d,
@@ -147,8 +150,8 @@ def run_signal(params, where, u, dt, mode='position', output='motor_velocity', s
             rows[:, 2] = w0
         forces = np.ascontiguousarray(u, dtype=float)
     res = model.run(None, forces, commands=rows)
-    if where == 'velocity_loop':
-        return u, res['drive_torque']
-    if where == 'position_loop':
-        return u, res['velocity_reference']
-    return u, res[OUTPUT_COLUMNS[output]]
+    key = {'velocity_loop': 'drive_torque', 'position_loop': 'velocity_reference'}.get(
+        where, OUTPUT_COLUMNS[output])
+    if np.any(res['fault'] != 0):           # a latched drive fault: no measurement
+        return u, np.full(n, math.nan)
+    return u, res[key]

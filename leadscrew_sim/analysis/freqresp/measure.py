@@ -214,12 +214,15 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
         pts = run_points(params, tasks, workers, scheduler)
         for i, a in enumerate(amps):
             rows = _merge(pts[i * len(f):(i + 1) * len(f)])
+            bad = sum(1 for r in rows if not np.isfinite(r['response']))
+            extra = [f'{bad} of {len(rows)} frequencies without a result (a drive fault '
+                     'latched or the run went non-finite: lower the amplitude)'] if bad else []
             out.append(FrequencyResponse(
                 np.array([r['frequency'] for r in rows]),
                 np.array([r['response'] for r in rows]),
                 np.array([r['coherence'] for r in rows]), a, name_in, name_out, 'sine',
                 [f'sine dwell: frequencies on the {1.0 / dt:g} Hz step grid, {settle} periods '
-                 f'(at least {settle_time:.3g} s) discarded, {periods} kept']))
+                 f'(at least {settle_time:.3g} s) discarded, {periods} kept'] + extra))
         return out
     if speed != 0.0:
         raise ParameterError('speed', f'{speed!r} m/s: {method} runs start at rest (speed 0); '

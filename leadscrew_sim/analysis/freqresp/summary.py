@@ -149,6 +149,7 @@ def summary_lines(responses, linear=None):
     for r in ([linear] if linear is not None else []) + list(responses):
         tag = r.source + ('' if math.isnan(r.amplitude) else f' at amplitude {r.amplitude:.4g}')
         lines.append(f'{r.input} -> {r.output} ({tag}):')
+        lines.extend(f'  note: {n}' for n in r.notes)
         res, anti = resonances(r)
         for name, items in (('resonances', res), ('anti-resonances', anti)):
             text = ', '.join(f'{fn:.4g} Hz (damping {z:.3g})' for fn, z in items) or 'none'
