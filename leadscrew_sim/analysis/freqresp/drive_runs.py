@@ -151,7 +151,7 @@ def run_signal(params, where, u, dt, mode='position', output='motor_velocity', s
         forces = np.ascontiguousarray(u, dtype=float)
     res = model.run(None, forces, commands=rows)
     key = {'velocity_loop': 'drive_torque', 'position_loop': 'velocity_reference'}.get(
-        where, OUTPUT_COLUMNS[output])
+        where, OUTPUT_COLUMNS.get(output))
     if np.any(res['fault'] != 0):           # a latched drive fault: no measurement
         return u, np.full(n, math.nan)
     return u, res[key]
