@@ -162,3 +162,12 @@ def test_bad_requests_are_refused():
         simulated_response(p, 'torque', 'motor_velocity', amplitudes=[-1.0])
     with pytest.raises(ParameterError, match="'method'"):
         simulated_response(p, 'torque', 'motor_velocity', method='prbs')
+
+
+def test_a_latched_drive_fault_leaves_no_result():
+    # a following error limit of 0.1 rad against a 10 mm position sine at 20 Hz
+    p = load_preset('tr12x3', mu_s=0.0, mu_k=0.0, following_error_limit=0.1)
+    r = simulated_response(p, 'position_command', 'nut_position', fmin=20.0, fmax=21.0,
+                           points=2, amplitudes=[0.01], workers=1)[0]
+    assert not np.isfinite(r.response).any()
+    assert any('without a result' in n for n in r.notes)
