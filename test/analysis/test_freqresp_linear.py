@@ -183,3 +183,18 @@ def test_stuck_thread_at_rest_locks_the_screw():
 def test_model_md_has_the_numbers_this_test_reads():
     row = model_md_row('tr12x3')
     assert all(re.match(r'^[0-9.e+-]+$', row[i]) for i in (1, 2, 3, 4, 6, 7, 8))
+
+
+def test_sliding_linearisation_is_the_stability_analysis_one():
+    # the continuous velocity loop while sliding has the eigenvalues the stability
+    # analysis finds for the same operating point (its translation mode aside)
+    from leadscrew_sim.analysis.freqresp.linear import closed_loop
+    from leadscrew_sim.analysis.stability.linearise import eigenvalues
+    from leadscrew_sim.analysis.stability.operating_point import operating_point
+    for preset, speed in (('tr12x3', 0.01), ('tr12x3', -0.004), ('stick_slip', 1e-3)):
+        p = dataclasses.replace(load_preset(preset), velocity_filter_time=0.0)
+        ours = closed_loop(p, 'velocity_command', 'motor_velocity', speed).system().poles()
+        ours = ours[np.abs(ours) > 1e-9 * np.abs(ours).max()]
+        theirs = eigenvalues(operating_point(p, speed, 'velocity'), p)
+        np.testing.assert_allclose(np.sort_complex(ours), np.sort_complex(theirs),
+                                   rtol=1e-7, atol=1e-9 * np.abs(theirs).max())
