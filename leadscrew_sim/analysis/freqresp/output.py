@@ -77,15 +77,20 @@ def plot_bode(path, responses, linear=None, title=None):
     fig, (am, ap, ac) = plt.subplots(3, 1, figsize=(7.5, 8.0), sharex=True,
                                      gridspec_kw=dict(height_ratios=[3, 2, 1.2]))
     unit = UNITS.get(responses[0].input if responses else linear.input, '-')
+    ref = None
     for i, r in enumerate(responses):
         label = (r.source if math.isnan(r.amplitude)
                  else f'{r.source}, amplitude {r.amplitude:.3g} {unit}')
         am.semilogx(r.frequency, r.magnitude_db, 'o-', ms=3, color=f'C{i}', label=label)
-        ap.semilogx(r.frequency, r.phase_deg, 'o-', ms=3, color=f'C{i}')
+        ph = r.phase_deg
+        if ref is None and np.isfinite(ph).any():
+            ref = ph[np.isfinite(ph)][0]
+        elif ref is not None and np.isfinite(ph).any():   # every curve on the first's branch
+            ph = ph - 360.0 * np.round((ph[np.isfinite(ph)][0] - ref) / 360.0)
+        ap.semilogx(r.frequency, ph, 'o-', ms=3, color=f'C{i}')
         if np.isfinite(r.coherence).any():
             ac.semilogx(r.frequency, r.coherence, 'o-', ms=3, color=f'C{i}')
     if linear is not None:
-        ref = responses[0].phase_deg[0] if responses else None
         ph = linear.phase_deg
         if ref is not None and np.isfinite(ref):   # the same branch of the phase
             ph = ph - 360.0 * np.round((ph[0] - ref) / 360.0)
