@@ -17,24 +17,7 @@ from leadscrew_sim.analysis.stability.linearise import eigenvalues
 from leadscrew_sim.analysis.stability.operating_point import operating_point
 from leadscrew_sim.core.params import ScrewParams
 
-PSI_A = math.radians(15.0)      # trapezoidal thread half-angle
-
-
-def geometry(p):
-    """Return (r_m, r_t, lambda, thread factor 1 / cos(psi_n)) from D, p, n_s."""
-    lead = p.pitch * p.starts
-    rm = (p.major_diameter - p.pitch / 2.0) / 2.0
-    lam = math.atan(lead / (2.0 * math.pi * rm))
-    psi_n = math.atan(math.tan(PSI_A) * math.cos(lam))
-    return rm, lead / (2.0 * math.pi), lam, 1.0 / math.cos(psi_n)
-
-
-def friction(p, vs):
-    """Return (mu', dmu'/dv) of the exponential Stribeck law at sliding speed vs > 0."""
-    _, _, _, tf = geometry(p)
-    e = math.exp(-vs / p.stribeck_velocity)
-    return (tf * (p.mu_k + (p.mu_s - p.mu_k) * e + p.mu_viscous * vs),
-            tf * (p.mu_viscous - (p.mu_s - p.mu_k) * e / p.stribeck_velocity))
+from test_stability_linear import apparent_mu as friction, geometry   # noqa: I100
 
 
 def steady_nuts(p, v):

@@ -28,7 +28,7 @@ DRIVES = ('velocity', 'ideal')
 
 def load_factor(mu, tan_l, sigma_s):
     """
-    Return the signed load factor G of the quasi-static relations (doc/model.md section 7; T = r_m W G).
+    Return the signed load factor G of doc/model.md section 7 (T = r_m W G).
 
     G+ = (tan + mu) / (1 - mu tan) when the drive moves against the load
     (sigma_s = +1), -G- = (tan - mu) / (1 + mu tan) when the load assists (-1).
