@@ -89,7 +89,7 @@ def measure(velocity, stuck, dt):
 
 
 def _one_run(model, op, duration, dt, stuck):
-    """Run one start from a model at rest; return (amplitude, stick share, period, |mean v - v|)."""
+    """Run one start from a model at rest; return (amplitude, stick share, period, |mean - v|)."""
     place_sliding(model, op, stuck, 1.0 if stuck else 1.0 + SMALL_PERTURBATION)
     n = max(4, int(round(duration / dt)))
     run = _run_ideal if op['drive'] == 'ideal' else _run_velocity
