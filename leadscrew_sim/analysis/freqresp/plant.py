@@ -1,29 +1,35 @@
 """
-The linearised axis without its drive: the plant of a frequency response (physics.md 13).
+The linearised axis without its drive: the plant of a frequency response (doc/frequency_response.md).
 
-Operating points (q sense, perturbations about them):
+The mechanics (masses, the thread's contact and friction, the coupling, the
+preload spring of a split nut) are those of the stability analysis,
+:func:`..stability.linearise.mechanics` (doc/stability.md), in its
+coordinates with the motor free: y = [q_m, q, x(, x_b)] with a compliant
+coupling, [q, x(, x_b)] with a rigid one. Operating points (q sense,
+perturbations about them):
 
 - sliding at a nut speed v != 0: the steady sliding state of the stability
-  analysis (:func:`..stability.operating_point.operating_point`) and the
-  linearisation of physics.md section 12 (as :mod:`..stability.linearise`
-  has it, single nut): contact on the loaded flank, friction linearised with
-  its slope, the collar torque following |F_a|;
-- at rest (v = 0) on the loaded flank: the contact is a spring (both flanks
-  when the backlash is 0); with thread friction (mu_s > 0) the thread is
+  analysis (:func:`..stability.operating_point.operating_point`): each nut
+  body on its loaded flank, friction linearised with its slope, the collar
+  torque following |F_a|;
+- at rest (v = 0) on the loaded flank: the contact is a spring; a split
+  nut's halves sit on the flanks the preload spring and their loads pick
+  (the frictionless balance). With thread friction (mu_s > 0) the thread is
   stuck, its stiction limit not reached: the sliding velocity
-  v_s = r_m cos(lambda) q' + sin(lambda) x' stays 0, so the nut moves with
-  the screw as x = -r_m cot(lambda) q (the friction force is the constraint's
-  reaction) and only the contact's normal spring lets the screw turn. The
-  bearing, guide and collar Coulomb terms are left out at rest (stuck, they
-  only add to the thread's lock). ``rest='free'`` leaves the thread's
-  friction out instead: the axis a test large enough to break it loose sees
-  (between its reversals).
+  v_s = r_m cos(lambda) q' + sin(lambda) x' of every nut body stays 0, so
+  each moves with the screw as x = -r_m cot(lambda) q (the friction force is
+  the constraint's reaction) and only the contacts' normal springs let the
+  screw turn. The bearing, guide and collar Coulomb terms are left out at
+  rest (stuck, they only add to the thread's lock). ``rest='free'`` leaves
+  the thread's friction out instead: the axis a test large enough to break
+  it loose sees (between its reversals).
 
 :func:`plant` returns a :class:`Plant`: X' = A X + B_T T_c + B_F F with X the
 coordinates, their rates and the motor torque lag state (when tau_e > 0);
-T_c the torque command [N m], F the external force on the nut [N], both q
-sense / +x; and rows that read the motor angle and rate, nut position and
-velocity, the axial thread force and the applied motor torque.
+T_c the torque command [N m], F the external force on nut A [N], both q
+sense / +x; and rows that read the motor angle and rate, nut A's position and
+velocity, the axial thread force (on both halves of a split nut) and the
+applied motor torque.
 """
 from dataclasses import dataclass
 import math
@@ -31,7 +37,8 @@ import math
 import numpy as np
 
 from ...core.params import ParameterError
-from ..stability.operating_point import operating_point
+from ..stability.linearise import mechanics
+from ..stability.operating_point import _split_nut, operating_point
 
 __all__ = ['Plant', 'plant', 'REST_STATES', 'rest_load']
 
@@ -79,69 +86,40 @@ def rest_load(p):
 
 
 def _rest_op(p):
-    """Return the operating point dict at rest, for stability's mechanics (friction out)."""
-    if p.anti_backlash:
-        raise ParameterError('anti_backlash', 'true: the frequency response handles the '
-                             'single nut only (set it false)')
+    """Return the operating point dict at rest (friction out), for stability's mechanics."""
     load = rest_load(p)
-    if load == 0.0 and p.backlash > 0.0:
+    if p.anti_backlash:
+        nuts, _ = _split_nut(p, load, 0.0, 0.0, 0.0)
+    elif load == 0.0 and p.backlash > 0.0:
         raise ParameterError('backlash', f'{p.backlash!r} m with no axial load at rest: the nut '
                              'floats in the backlash (give a load, or backlash 0, or a speed)')
-    return dict(speed=0.0, s=0.0, sigma=1.0 if load >= 0.0 else -1.0, N0=0.0, mu0=0.0,
-                slope=0.0, Fa0=0.0, load=load, torque=p.lead_ratio * load,
-                rigid=p.coupling_stiffness == 0.0, drive='velocity')
+    else:
+        nuts = ((1.0 if load >= 0.0 else -1.0, abs(load) / math.cos(p.lead_angle)),)
+    return dict(speed=0.0, s=0.0, sigma=nuts[0][0], N0=0.0, mu0=0.0, slope=0.0, Fa0=0.0,
+                load=load, torque=p.lead_ratio * load, rigid=p.coupling_stiffness == 0.0,
+                drive='velocity', nuts=nuts)
 
 
-def _stuck_map(p, n, iq, ix):
-    """Return R (n, n-1): y = R y_r with x = -r_m cot(lambda) q (the stuck thread)."""
-    keep = [i for i in range(n) if i != ix]
-    r = np.zeros((n, n - 1))
+def _stuck_map(p, n, iq, nuts):
+    """Return R (n, n - nuts): y = R y_r with every nut body at x = -r_m cot(lambda) q (stuck)."""
+    keep = [i for i in range(n) if i not in nuts]
+    r = np.zeros((n, len(keep)))
     for j, i in enumerate(keep):
         r[i, j] = 1.0
-    r[ix, keep.index(iq)] = -p.r_m / math.tan(p.lead_angle)
+    for ix in nuts:
+        r[ix, keep.index(iq)] = -p.r_m / math.tan(p.lead_angle)
     return r
 
 
-def _mechanics(op, p):
-    """Return (masses, F over z = [y, y'], i_qm or None, i_q, i_x); y = [q_m,] q, x."""
-    rigid = op['rigid']
-    im, iq, ix = (None, 0, 1) if rigid else (0, 1, 2)
-    n = 2 if rigid else 3
-    sl, cl = math.sin(p.lead_angle), math.cos(p.lead_angle)
-    g_delta = np.zeros(2 * n)               # delta = x - r_t q
-    g_delta[ix], g_delta[iq] = 1.0, -p.lead_ratio
-    g_n = -(p.contact_stiffness * g_delta + p.contact_damping * np.roll(g_delta, n)) / cl
-    g_vs = np.zeros(2 * n)                  # v_s = r_m cos(lambda) q' + sin(lambda) x'
-    g_vs[n + ix], g_vs[n + iq] = sl, p.r_m * cl
-    g_f = -op['s'] * (op['mu0'] * op['sigma'] * g_n + abs(op['N0']) * op['slope'] * g_vs)
-    g_fa = cl * g_n + sl * g_f
-    f = np.zeros((n, 2 * n))
-    mass = np.zeros(n)
-    f[ix] = g_fa
-    f[ix, n + ix] -= p.guide_viscous
-    mass[ix] = p.nut_mass + p.payload_mass
-    f[iq] = p.r_m * (-sl * g_n + cl * g_f)
-    f[iq] -= p.collar_mu * p.collar_radius * op['s'] * math.copysign(1.0, op['Fa0']) * g_fa
-    f[iq, n + iq] -= p.bearing_viscous
-    mass[iq] = p.screw_inertia + (p.motor_inertia if rigid else 0.0)
-    if not rigid:
-        kc, cc = p.coupling_stiffness, p.coupling_damping
-        mass[im] = p.motor_inertia
-        for a, b, sign in ((iq, im, 1.0), (im, iq, 1.0), (iq, iq, -1.0), (im, im, -1.0)):
-            f[a, b] += sign * kc
-            f[a, n + b] += sign * cc
-    return mass, f, im, iq, ix
-
-
 def _second_order(p, op, stuck):
-    """Return (mass matrix, force matrix over [y, y'], R, iq_m, iq, ix) of the mechanics."""
-    mass, f, im, iq, ix = _mechanics(op, p)
+    """Return (mass matrix, F over [y, y'], R, RR, bodies) of the mechanics."""
+    mass, f, bodies = mechanics(op, p)
     n = len(mass)
-    r = _stuck_map(p, n, iq, ix) if stuck else np.eye(n)
+    r = _stuck_map(p, n, bodies.q, bodies.nuts) if stuck else np.eye(n)
     rr = np.zeros((2 * n, 2 * r.shape[1]))
     rr[:n, :r.shape[1]] = r
     rr[n:, r.shape[1]:] = r
-    return np.diag(mass), f, r, rr, im, iq, ix
+    return np.diag(mass), f, r, rr, bodies
 
 
 def plant(params, speed=0.0, rest='stuck'):
@@ -151,7 +129,7 @@ def plant(params, speed=0.0, rest='stuck'):
     Parameters
     ----------
     params : ScrewParams
-        The axis (single nut).
+        The axis (single or split nut).
     speed : float
         Nut speed [m/s]; 0: at rest on the loaded flank.
     rest : str
@@ -160,8 +138,8 @@ def plant(params, speed=0.0, rest='stuck'):
     Raises
     ------
     ParameterError
-        For a split nut, a nut floating in the backlash at rest, or a
-        sliding state that does not exist (see the stability analysis).
+        For a nut floating in the backlash at rest, or a sliding state that
+        does not exist (see the stability analysis).
 
     """
     p = params
@@ -173,7 +151,8 @@ def plant(params, speed=0.0, rest='stuck'):
     else:
         op = dict(operating_point(p, speed, 'ideal'), drive='velocity')
         stuck = False
-    m, f, r, rr, im, iq, ix = _second_order(p, op, stuck)
+    m, f, r, rr, bodies = _second_order(p, op, stuck)
+    im, iq, ix = bodies.q_m, bodies.q, bodies.nuts[0]
     n = len(m)
     nr = r.shape[1]
     m_r = r.T @ m @ r
@@ -198,33 +177,34 @@ def plant(params, speed=0.0, rest='stuck'):
         b_t[-1] = 1.0 / p.torque_lag
     else:
         b_t[nr:2 * nr] = acc_t
-    rows = _rows(p, a, b_t, b_f, rr, nr, nx, jm, ix, lag)
+    rows = _rows(p, a, b_t, b_f, rr, nx, jm, bodies.nuts, lag)
     return Plant(a=a, b_t=b_t, b_f=b_f, rows=rows, lag=lag,
                  state='sliding' if speed else ('stuck' if stuck else 'rest'), op=op)
 
 
-def _rows(p, a, b_t, b_f, rr, nr, nx, jm, ix, lag):
+def _rows(p, a, b_t, b_f, rr, nx, jm, nuts, lag):
     """Return the output rows of :class:`Plant` (row over X, coefficient on T_c, on F)."""
     n = rr.shape[0] // 2
+    nr = rr.shape[1] // 2
 
-    def full(row_y):                        # a row over z = [y, y'] -> over X
+    def unit(i):                            # the coordinate (or rate) i of z = [y, y'] over X
         out = np.zeros(nx)
-        out[:2 * nr] = row_y @ rr
+        out[:2 * nr] = rr[i]
         return out
 
-    def unit(i):
-        e = np.zeros(2 * n)
-        e[i] = 1.0
-        return full(e)
-
+    ix = nuts[0]
     rows = dict(q_m=(unit(jm), 0.0, 0.0), w_m=(unit(n + jm), 0.0, 0.0),
                 x=(unit(ix), 0.0, 0.0), v=(unit(n + ix), 0.0, 0.0))
-    # axial thread force F_a = m x'' + c_x x' - F: the nut's own balance
-    m_nut = p.nut_mass + p.payload_mass
-    row_v = rows['v'][0]
-    acc = row_v @ a
-    rows['force'] = (m_nut * acc + p.guide_viscous * row_v, m_nut * (row_v @ b_t),
-                     m_nut * (row_v @ b_f) - 1.0)
+    # axial thread force on the nut bodies: sum m_i x_i'' + c_x x' - F, their own
+    # balance (the preload spring's forces on the two halves cancel; stuck, it
+    # includes the friction's reaction)
+    force = [p.guide_viscous * rows['v'][0], 0.0, -1.0]
+    for i, m_i in zip(nuts, (p.nut_mass + p.payload_mass, p.second_nut_mass)):
+        row_v = unit(n + i)
+        force[0] = force[0] + m_i * (row_v @ a)
+        force[1] += m_i * (row_v @ b_t)
+        force[2] += m_i * (row_v @ b_f)
+    rows['force'] = tuple(force)
     if lag:
         e = np.zeros(nx)
         e[-1] = 1.0

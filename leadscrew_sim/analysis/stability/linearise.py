@@ -22,11 +22,35 @@ shifted by the rigid kinematics changes no force): it is removed exactly by
 taking the quotient of the state space by it, so it never shows as a zero
 eigenvalue.
 """
+from dataclasses import dataclass
 import math
 
 import numpy as np
 
-__all__ = ['eigenvalues', 'state_matrix']
+__all__ = ['Bodies', 'eigenvalues', 'mechanics', 'state_matrix']
+
+
+@dataclass(frozen=True)
+class Bodies:
+    """
+    Where each body sits in y, and the threads' axial force.
+
+    Attributes
+    ----------
+    q_m, q : int or None
+        Index of the motor angle, the screw angle [rad] (None: not a state).
+    nuts : tuple of int
+        Indices of nut A's x [m] and, with a split nut, half-nut B's x_b [m].
+    thread_force : numpy.ndarray (2 n,)
+        The axial force of the screw's thread(s) on the nut bodies [N] as a
+        row over z = [y, y'] (both halves summed).
+
+    """
+
+    q_m: int
+    q: int
+    nuts: tuple
+    thread_force: np.ndarray
 
 
 def _coordinates(op, params):
@@ -60,9 +84,27 @@ def _thread(op, p, iq, ix, n, n_abs, sigma, slope):
     return g_n, -op['s'] * (op['mu0'] * sigma * g_n + n_abs * slope * g_vs)
 
 
-def _mechanics(op, params, slope):
-    """Return (masses, F, iq_m, iq, nut indices): M y'' = F z, drive aside."""
+def mechanics(op, params, slope=None):
+    """
+    Return (masses, F, bodies): M y'' = F z, z = [y, y'], the drive aside.
+
+    The coordinates y follow ``op['drive']`` (see the module doc); M is
+    diagonal (``masses`` [kg or kg m^2]), F the generalised forces [N or N m]
+    linear in z, :class:`Bodies` the indices and the threads' axial force.
+
+    Parameters
+    ----------
+    op : dict
+        The operating point (:func:`.operating_point.operating_point`, or any
+        dict with its keys drive, rigid, s, mu0, slope, Fa0 and nuts).
+    params : ScrewParams
+        The axis.
+    slope : float, optional
+        dmu'/dv [s/m] to use; default the operating point's.
+
+    """
     p = params
+    slope = op['slope'] if slope is None else slope
     names, im, iq, nuts = _coordinates(op, params)
     n = len(names)
     lam = p.lead_angle
@@ -90,7 +132,7 @@ def _mechanics(op, params, slope):
         mass[iq] = p.screw_inertia + (p.motor_inertia if op['rigid'] else 0.0)
         if not op['rigid']:
             _coupling(f, mass, p, im, iq, n)
-    return mass, f, im, iq, nuts
+    return mass, f, Bodies(im, iq, tuple(nuts), g_fa)
 
 
 def _coupling(f, mass, p, im, iq, n):
@@ -127,8 +169,8 @@ def state_matrix(op, params, slope=None):
 
     """
     p = params
-    slope = op['slope'] if slope is None else slope
-    mass, f, im, iq, nuts = _mechanics(op, params, slope)
+    mass, f, bodies = mechanics(op, params, slope)
+    im, iq, nuts = bodies.q_m, bodies.q, list(bodies.nuts)
     n = len(mass)
     velocity = op['drive'] == 'velocity'
     extra = []
