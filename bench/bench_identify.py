@@ -26,6 +26,12 @@ Part 3 (``--profiles sweep,iso230,...``): ``simulate --excite`` recordings of tr
 with the test's truth and sensors, fitted the same way; the errors and verdicts.
 Part 4 (``--cases anti_backlash:position,...``): the test's cases, any preset and mode, with
 ``--case-seeds`` sensor seeds (the test's first), and how many intervals hold the truth.
+Part 5 (``--clean-sweep``): the issue's clean sweep (tr12x3, ideal sensors, mu_k 0.12,
+mu_s 0.17) fitted for mu_s, mu_k and the Stribeck velocity: wall time, re-simulations,
+errors. Part 6 (``--quantised tr12x3,stick_slip``): the ``sweep`` and ``breakaway``
+profiles of each preset with the test's friction truth (x1.25, x0.8, x1.3), a 16-bit
+encoder with half a count of noise and a 1 um scale with 0.5 um of noise, fitted for
+mu_s, mu_k and the Stribeck velocity; ``--case-seeds`` sensor seeds (7, 11, ..).
 """
 import argparse
 import importlib
@@ -199,6 +205,54 @@ def cases(names, seeds=1):
                   ', '.join(f'{n} {k}' for n, k in held.items()))
 
 
+def clean_sweep():
+    """Print the fit of the issue's clean sweep: wall time, re-simulations, errors."""
+    sets = dict(mu_k=0.12, mu_s=0.17)
+    true = T.load_preset('tr12x3', **sets)
+    with tempfile.TemporaryDirectory() as d:
+        rec = Path(d) / 'sw3.mcap'
+        cli.main(['simulate', '--preset', 'tr12x3', '--excite', 'sweep', '-q', '-o', str(rec)]
+                 + [a for n, v in sets.items() for a in ('--set', f'{n}={v}')])
+        t0 = time.perf_counter()
+        out = fit_recording(_args(rec, 'mu_s,mu_k,stribeck_velocity'))
+        wall = time.perf_counter() - t0
+    res = out['res']
+    errs = ', '.join(f'{n} {100 * (v - getattr(true, n)) / getattr(true, n):+.5f} % '
+                     f'({vd.status})' for n, v, vd in zip(res.names, res.values, res.verdicts))
+    print(f'clean sweep: {wall:.1f} s wall, {out["problem"].evaluations} re-simulations; '
+          f'{errs}')
+
+
+#: The sensors of part 6: a 16-bit encoder with half a count of noise, a 1 um scale.
+QUANTISED = dict(encoder_counts=2 ** 16, encoder_noise=0.5 * 2 * np.pi / 2 ** 16,
+                 scale_resolution=1e-6, scale_noise=5e-7)
+
+
+def quantised(presets, seeds=1):
+    """Print the fits of mu_s, mu_k, stribeck_velocity of sweep and breakaway, 16-bit encoder."""
+    fit = 'mu_s,mu_k,stribeck_velocity'
+    for preset in presets:
+        p0 = T.load_preset(preset)
+        for name in ('sweep', 'breakaway'):
+            for seed in range(seeds):
+                values = {n: getattr(p0, n) * T.TRUTH[n] for n in fit.split(',')}
+                values.update(QUANTISED, sensor_seed=7 + 4 * seed)
+                true = T.load_preset(preset, **values)
+                with tempfile.TemporaryDirectory() as d:
+                    rec = Path(d) / 'run.mcap'
+                    cli.main(['simulate', '--preset', preset, '--excite', name, '-q', '-o',
+                              str(rec)] + [a for n, v in values.items()
+                                           for a in ('--set', f'{n}={v!r}')])
+                    args = _args(rec, fit)
+                    args.preset = preset
+                    t0 = time.perf_counter()
+                    out = fit_recording(args)
+                    wall = time.perf_counter() - t0
+                print(f'{preset:>10} {name:>9} seed {7 + 4 * seed}: {out["problem"].slow} '
+                      f'steps left out, {wall:.1f} s wall; '
+                      f'{_errors(out["res"], true, digits=3)}', flush=True)
+
+
 def main():
     """Run the parts asked for (speed, coverage, profiles)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -213,6 +267,9 @@ def main():
     ap.add_argument('--fit', default=FIT, help='parameters of the speed part (default '
                     f'{FIT}; default: identify\'s default set, no --fit)')
     ap.add_argument('--modes', default='velocity,torque', help='drive modes of the speed part')
+    ap.add_argument('--clean-sweep', action='store_true', help='fit the clean sweep')
+    ap.add_argument('--quantised', default='', help='comma list of presets whose sweep and '
+                    'breakaway profiles are fitted with a 16-bit encoder')
     a = ap.parse_args()
     if a.seconds:
         speed(a.seconds, a.fit, [m for m in a.modes.split(',') if m])
@@ -222,6 +279,10 @@ def main():
         profiles([n for n in a.profiles.split(',') if n])
     if a.cases:
         cases([n for n in a.cases.split(',') if n], a.case_seeds)
+    if a.clean_sweep:
+        clean_sweep()
+    if a.quantised:
+        quantised([n for n in a.quantised.split(',') if n], a.case_seeds)
     return 0
 
 
