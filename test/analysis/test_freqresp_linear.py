@@ -198,3 +198,45 @@ def test_sliding_linearisation_is_the_stability_analysis_one():
         theirs = eigenvalues(operating_point(p, speed, 'velocity'), p)
         np.testing.assert_allclose(np.sort_complex(ours), np.sort_complex(theirs),
                                    rtol=1e-7, atol=1e-9 * np.abs(theirs).max())
+
+
+@pytest.mark.parametrize('coupling', [0.0, 40.0])
+def test_split_nut_sliding_zeros_are_the_ideal_drive_modes(coupling):
+    # torque -> motor angle: its zeros are the modes with the motor held still, which is
+    # the stability analysis's ideal drive (q_m prescribed); both halves of the split nut
+    # and the preload spring are in those modes (4 states rigid, 6 with the coupling)
+    from leadscrew_sim.analysis.freqresp.linear import closed_loop
+    from leadscrew_sim.analysis.stability.linearise import eigenvalues
+    from leadscrew_sim.analysis.stability.operating_point import operating_point
+    p = load_preset('anti_backlash', coupling_stiffness=coupling)
+    assert p.anti_backlash
+    for speed in (0.01, -0.004):
+        zeros = closed_loop(p, 'torque', 'motor_angle', speed).system().zeros()
+        modes = eigenvalues(operating_point(p, speed, 'ideal'), p)
+        assert len(zeros) == len(modes) == (4 if coupling == 0.0 else 6)
+        # 1e-7: the generalised eigenvalue problem of the zeros against a plain eigvals
+        # (both ~1e-10 relative here); a missing half-nut or spring moves them by > 1 %
+        for m in modes:                          # each mode has its zero (pairs matched)
+            assert np.min(np.abs(zeros - m)) <= 1e-7 * abs(m), (m, zeros)
+
+
+def test_split_nut_stuck_at_rest_has_both_contacts():
+    # at rest both halves are held by stiction: each moves by -r_m cot(lambda) q, its
+    # contact deflected by -(r_m / (sin cos)) q; the potential 2 k (r_m / (sin cos))^2 q^2 / 2
+    # makes the rotor's static compliance 1 / (2 k_eq) (the preload spring is not strained)
+    p = load_preset('anti_backlash', torque_lag=0.0)
+    assert p.anti_backlash and p.mu_s > 0.0 and p.coupling_stiffness == 0.0
+    rm = (p.major_diameter - p.pitch / 2.0) / 2.0
+    lam = math.atan(p.pitch * p.starts / (2.0 * math.pi * rm))
+    k_eq = p.contact_stiffness * rm ** 2 / (math.sin(lam) * math.cos(lam)) ** 2
+    q = linear_response(p, 'torque', 'motor_angle', frequency=[0.5])
+    # 1e-3: the inertia (J + m r_m^2 cot^2) w^2 at 0.5 Hz is ~1e-8 of 2 k_eq; the contact
+    # damping's phase at 0.5 Hz is ~1e-4
+    assert abs(q.response[0]) == pytest.approx(1.0 / (2.0 * k_eq), rel=1e-3)
+    x = linear_response(p, 'torque', 'nut_position', frequency=[0.5])
+    ratio = x.response[0] / (p.hand_sign * q.response[0])
+    assert ratio.real == pytest.approx(-rm / math.tan(lam), rel=1e-6)
+    # free (friction out): the thread turns the screw, the halves ride on their flanks;
+    # at 0.5 Hz the velocity loop follows its command (|T| within 1 % of 1)
+    free = linear_response(p, 'velocity_command', 'nut_velocity', frequency=[0.5], rest='free')
+    assert abs(free.response[0]) == pytest.approx(1.0, rel=0.01)
