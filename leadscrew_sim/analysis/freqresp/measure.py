@@ -19,6 +19,7 @@ from .broadband import chirp_response, multisine_response
 from .linear import closed_loop, INPUTS, LOOPS, MODES, OUTPUTS, QUANTITIES, SAMPLINGS
 from .loops import loop_gain, loop_response
 from .parallel import run_points
+from .plant import thread_state
 from .response import FrequencyResponse
 from .sine import _loop_pair, grid_frequency
 
@@ -116,16 +117,17 @@ def linear_response(params, input=None, output=None, loop=None, quantity=None,
     check_request(input, output, loop, quantity)
     _one_of('sampling', sampling, SAMPLINGS)
     f = np.asarray(frequency, dtype=float)
+    state = thread_state(params, speed, rest)
     if loop is not None:
         h, note = loop_response(params, loop, quantity, f, speed, sampling, dt, rest)
         lg, _ = loop_gain(params, loop, f, speed, sampling, dt, rest)
         return FrequencyResponse(f, h, np.full(len(f), math.nan), math.nan, f'{loop}_loop',
-                                 quantity, 'linear', [note], loop_gain=lg)
+                                 quantity, 'linear', [note], loop_gain=lg, state=state)
     cl = closed_loop(params, input, output, speed, mode, rest)
     h, notes = cl.response(f, sampling, dt)
     sys_c = cl.system('continuous')
     return FrequencyResponse(f, h, np.full(len(f), math.nan), math.nan, input, output, 'linear',
-                             notes, poles=sys_c.poles(), zeros=sys_c.zeros())
+                             notes, poles=sys_c.poles(), zeros=sys_c.zeros(), state=state)
 
 
 def measurement_step(params, dt, loop=None):

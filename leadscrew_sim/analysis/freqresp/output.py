@@ -5,7 +5,9 @@ CSV: one row per frequency and amplitude, columns :data:`COLUMNS`:
 ``frequency`` [Hz], ``magnitude_db`` [dB of the output unit over the input
 unit, SI], ``phase_deg`` [deg, unwrapped along frequency], ``coherence`` [-]
 (empty for the linear model), ``amplitude`` [the input's SI unit] (empty for
-the linear model). PNG: magnitude and phase against frequency (log), one
+the linear model). An unknown value is an empty cell, never 'nan' or 'inf':
+the linear model's coherence and amplitude, a point without a result (a
+latched drive fault), the dB of a zero gain. PNG: magnitude and phase against frequency (log), one
 curve per amplitude, the linear model dashed, the coherence below.
 """
 import csv
@@ -25,7 +27,9 @@ UNITS = dict(torque='N m', velocity_command='m/s', position_command='m', externa
 
 
 def _num(x):
-    return '' if isinstance(x, float) and math.isnan(x) else repr(float(x))
+    """Return a cell: repr of a finite number, '' for an unknown (NaN) or non-finite one."""
+    x = float(x)
+    return repr(x) if math.isfinite(x) else ''
 
 
 def write_csv(path, responses):

@@ -40,7 +40,7 @@ from ...core.params import ParameterError
 from ..stability.linearise import mechanics
 from ..stability.operating_point import _split_nut, operating_point
 
-__all__ = ['Plant', 'plant', 'REST_STATES', 'rest_load']
+__all__ = ['Plant', 'plant', 'REST_STATES', 'rest_load', 'thread_state']
 
 #: The thread at rest: stuck (stiction holds it), or free (friction left out).
 REST_STATES = ('stuck', 'free')
@@ -83,6 +83,19 @@ def rest_load(p):
     """Return W [N]: the axial force the thread supplies along +x at rest (-F_g - F_ext)."""
     f_g = -(p.nut_mass + p.payload_mass) * p.gravity * math.sin(p.inclination)
     return -f_g - p.external_force
+
+
+def thread_state(params, speed=0.0, rest='stuck'):
+    """
+    Return the thread's state in the linear model: 'sliding', 'stuck' or 'rest' (free at rest).
+
+    Stuck: at rest (speed 0 [m/s]) with static friction (mu_s > 0) and ``rest`` 'stuck'.
+    """
+    if speed != 0.0:
+        return 'sliding'
+    if rest not in REST_STATES:
+        raise ParameterError('rest', f'{rest!r} is not one of {", ".join(REST_STATES)}')
+    return 'stuck' if params.mu_s > 0.0 and rest == 'stuck' else 'rest'
 
 
 def _rest_op(p):
@@ -143,14 +156,12 @@ def plant(params, speed=0.0, rest='stuck'):
 
     """
     p = params
-    if speed == 0.0:
-        op = _rest_op(p)
-        if rest not in REST_STATES:
-            raise ParameterError('rest', f'{rest!r} is not one of {", ".join(REST_STATES)}')
-        stuck = p.mu_s > 0.0 and rest == 'stuck'
-    else:
+    state = thread_state(p, speed, rest)
+    if state == 'sliding':
         op = dict(operating_point(p, speed, 'ideal'), drive='velocity')
-        stuck = False
+    else:
+        op = _rest_op(p)
+    stuck = state == 'stuck'
     m, f, r, rr, bodies = _second_order(p, op, stuck)
     im, iq, ix = bodies.q_m, bodies.q, bodies.nuts[0]
     n = len(m)
@@ -178,8 +189,7 @@ def plant(params, speed=0.0, rest='stuck'):
     else:
         b_t[nr:2 * nr] = acc_t
     rows = _rows(p, a, b_t, b_f, rr, nx, jm, bodies.nuts, lag)
-    return Plant(a=a, b_t=b_t, b_f=b_f, rows=rows, lag=lag,
-                 state='sliding' if speed else ('stuck' if stuck else 'rest'), op=op)
+    return Plant(a=a, b_t=b_t, b_f=b_f, rows=rows, lag=lag, state=state, op=op)
 
 
 def _rows(p, a, b_t, b_f, rr, nx, jm, nuts, lag):

@@ -40,6 +40,9 @@ class FrequencyResponse:
         The linear model's poles and finite zeros [1/s] (continuous time).
     loop_gain : ndarray of complex, optional
         For a loop quantity, L at the same frequencies (margins and peak sensitivity).
+    state : str, optional
+        The linear model's thread: 'sliding', 'stuck' (at rest, held by
+        stiction) or 'rest' (at rest, friction left out).
 
     """
 
@@ -54,6 +57,7 @@ class FrequencyResponse:
     poles: np.ndarray = None
     zeros: np.ndarray = None
     loop_gain: np.ndarray = None
+    state: str = None
 
     @property
     def magnitude_db(self):
@@ -63,5 +67,9 @@ class FrequencyResponse:
 
     @property
     def phase_deg(self):
-        """Phase of H, unwrapped along frequency [deg]."""
-        return np.degrees(np.unwrap(np.angle(self.response)))
+        """Phase of H, unwrapped along frequency over its finite nonzero points [deg] (else NaN)."""
+        h = np.asarray(self.response)
+        out = np.full(h.shape, np.nan)
+        ok = np.isfinite(h) & (h != 0.0)
+        out[ok] = np.degrees(np.unwrap(np.angle(h[ok])))
+        return out

@@ -14,12 +14,19 @@ The printed summary of a frequency response: resonances, bandwidth, margins, amp
   gain crossover, peak sensitivity max |1 / (1 + L)|.
 - Amplitude dependence: the frequencies and amplitudes at which the gain
   differs by more than 1 dB from that at the largest amplitude.
+
+A figure the data cannot support is said in words, never printed as NaN or
+inf: no bandwidth in the band (and why), no phase crossover (no gain
+margin), no gain crossover (no phase margin), a damping whose half-power
+points lie outside the band; a linear model whose thread is stuck at rest is
+said once (:data:`STUCK`).
 """
 import math
 
 import numpy as np
 
-__all__ = ['amplitude_range', 'bandwidth', 'margins', 'resonances', 'summary_lines']
+__all__ = ['amplitude_range', 'bandwidth', 'bandwidth_text', 'margin_text', 'margins',
+           'resonances', 'STUCK', 'summary_lines']
 
 PROMINENCE_DB = 3.0    #: how far a measured peak or dip stands out [dB]
 LIGHT = 0.7            #: damping below which a pole or zero pair counts as a (anti-)resonance
@@ -77,12 +84,14 @@ def resonances(resp):
 
 def bandwidth(resp):
     """Return the bandwidth [Hz] of a response (see the module doc); NaN if not in the band."""
-    db = resp.magnitude_db
+    f, db = _finite(resp)                    # points without a result (or a zero gain) left out
+    if len(f) < 2:
+        return math.nan
     if resp.output == 'L':
-        return _crossing(resp.frequency, db, 0.0)
+        return _crossing(f, db, 0.0)
     if resp.output == 'S':
-        return _crossing(resp.frequency, db, -3.0)
-    return _crossing(resp.frequency, db, db[0] - 3.0)
+        return _crossing(f, db, -3.0)
+    return _crossing(f, db, db[0] - 3.0)
 
 
 def margins(f, loop):
@@ -97,6 +106,11 @@ def margins(f, loop):
         L at f.
 
     """
+    ok = np.isfinite(loop)                   # points without a result left out
+    f, loop = np.asarray(f, float)[ok], np.asarray(loop)[ok]
+    if len(f) < 2:
+        return dict(gain_margin_db=math.inf, gain_margin_frequency=math.nan,
+                    phase_margin_deg=math.nan, crossover=math.nan, ms=math.nan)
     mag = np.abs(loop)
     ph = np.degrees(np.unwrap(np.angle(loop)))
     wc = _crossing(f, 20.0 * np.log10(mag), 0.0)
@@ -143,25 +157,92 @@ def amplitude_range(responses, limit_db=1.0):
     return sorted(freqs), sorted(amps)
 
 
+#: Said once when a linear model's thread is stuck at rest.
+STUCK = ('the thread is stuck at rest (stiction): the motor turns only by straining the '
+         'contact; use --speed V for a sliding operating point or --rest free')
+
+
+def _band(r):
+    f = r.frequency
+    return f'{f[0]:.4g}-{f[-1]:.4g} Hz' if len(f) else 'the band'
+
+
+def _finite(r):
+    """Return (f, dB) at the frequencies where |H| is finite and nonzero."""
+    db = r.magnitude_db
+    ok = np.isfinite(db)
+    return r.frequency[ok], db[ok]
+
+
+def bandwidth_text(r):
+    """Return the summary's bandwidth line: a frequency, or 'none' and why."""
+    bw = bandwidth(r)
+    if math.isfinite(bw):
+        return f'bandwidth: {bw:.4g} Hz'
+    f, db = _finite(r)
+    if len(f) < 2:
+        why = 'too few points with a finite gain'
+    elif r.output == 'L':
+        why = ('|L| stays below 0 dB: no crossover' if db.max() < 0.0
+               else '|L| stays above 0 dB: no crossover')
+    elif r.output == 'S':
+        why = ('|S| stays above -3 dB: no disturbance rejection' if db.min() > -3.0
+               else '|S| stays below -3 dB')
+    else:
+        why = 'the gain never falls 3 dB below its low-frequency value'
+    return f'bandwidth: none in {_band(r)} ({why})'
+
+
+def margin_text(r, loop):
+    """Return the summary's margins line of L at r's frequencies: numbers, or 'none' and why."""
+    m = margins(r.frequency, loop)
+    parts = []
+    if math.isfinite(m['gain_margin_db']):
+        parts.append(f'gain margin {m["gain_margin_db"]:.3g} dB at '
+                     f'{m["gain_margin_frequency"]:.4g} Hz')
+    else:
+        parts.append('gain margin: none (the phase never crosses -180 deg in the band)')
+    if math.isfinite(m['phase_margin_deg']):
+        parts.append(f'phase margin {m["phase_margin_deg"]:.3g} deg at {m["crossover"]:.4g} Hz')
+    else:
+        mag = np.abs(loop)
+        mag = mag[np.isfinite(mag)]
+        side = 'below' if len(mag) and mag.max() < 1.0 else 'above'
+        parts.append(f'phase margin: none (|L| stays {side} 0 dB: no crossover in the band)')
+    if math.isfinite(m['ms']):
+        db = round(20.0 * math.log10(m['ms']), 2) + 0.0        # no '-0.00'
+        parts.append(f'peak sensitivity {m["ms"]:.3g} ({db:.2f} dB)')
+    elif math.isnan(m['ms']):
+        parts.append('peak sensitivity: none (too few points with a finite L)')
+    else:
+        parts.append('peak sensitivity: unbounded (1 + L = 0 in the band)')
+    return ', '.join(parts)
+
+
+def _items(items):
+    """Return '(f Hz (damping z), ...' or 'none'; a damping the band cannot resolve said so."""
+    return ', '.join(f'{fn:.4g} Hz (damping {z:.3g})' if math.isfinite(z)
+                     else f'{fn:.4g} Hz (damping not resolved: its half-power points are '
+                     'outside the band)' for fn, z in items) or 'none'
+
+
 def summary_lines(responses, linear=None):
     """Return the summary as text lines for a list of responses (and the linear model's)."""
     lines = []
-    for r in ([linear] if linear is not None else []) + list(responses):
+    every = ([linear] if linear is not None else []) + list(responses)
+    if any(r.state == 'stuck' for r in every):
+        lines.append(STUCK)
+    for r in every:
         tag = r.source + ('' if math.isnan(r.amplitude) else f' at amplitude {r.amplitude:.4g}')
         lines.append(f'{r.input} -> {r.output} ({tag}):')
         lines.extend(f'  note: {n}' for n in r.notes)
         res, anti = resonances(r)
-        for name, items in (('resonances', res), ('anti-resonances', anti)):
-            text = ', '.join(f'{fn:.4g} Hz (damping {z:.3g})' for fn, z in items) or 'none'
-            lines.append(f'  {name}: {text}')
-        lines.append(f'  bandwidth: {bandwidth(r):.4g} Hz')
+        lines.append(f'  resonances: {_items(res)}')
+        lines.append(f'  anti-resonances: {_items(anti)}')
+        lines.append(f'  {bandwidth_text(r)}')
         if r.loop_gain is not None or r.output in ('L', 'S', 'T') and r.source != 'linear':
             lg = r.loop_gain if r.loop_gain is not None else _loop_from(r)
-            m = margins(r.frequency, lg)
-            lines.append(f'  gain margin {m["gain_margin_db"]:.3g} dB at '
-                         f'{m["gain_margin_frequency"]:.4g} Hz, phase margin '
-                         f'{m["phase_margin_deg"]:.3g} deg at {m["crossover"]:.4g} Hz, '
-                         f'peak sensitivity {m["ms"]:.3g} ({20 * math.log10(m["ms"]):.2f} dB)')
+            lines.append(f'  {margin_text(r, lg)}')
         coh = r.coherence[np.isfinite(r.coherence)]
         if len(coh):
             lines.append(f'  coherence: min {coh.min():.3f}, median {np.median(coh):.3f}')
@@ -177,4 +258,7 @@ def summary_lines(responses, linear=None):
 def _loop_from(r):
     """Return L from a measured S (1 / S - 1), T (T / (1 - T)) or L."""
     h = r.response
-    return {'L': h, 'S': 1.0 / h - 1.0, 'T': h / (1.0 - h)}[r.output]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        if r.output == 'S':
+            return 1.0 / h - 1.0
+        return h / (1.0 - h) if r.output == 'T' else h
