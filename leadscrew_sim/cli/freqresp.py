@@ -1,7 +1,7 @@
 """
 The ``freqresp`` verb: the axis's frequency response (Bode plot) from three sources.
 
-Parses the flags (interfaces.md, Analysis v3) and calls
+Parses the flags (doc/frequency_response.md) and calls
 :func:`leadscrew_sim.offline.freqresp.freqresp_run`; prints its summary.
 """
 from ..offline.freqresp import freqresp_run

@@ -4,7 +4,7 @@ The frequency response of a recording with broadband excitation (``freqresp RUN.
 :func:`recording_response` reads the node's recording of an ``excite chirp``
 or ``excite multisine`` run (on the node or a real axis), or another source's
 ros2 MCAP with the topic mapping ``identify`` has, picks the input and the
-output by name, puts both on the steps' grid (physics.md section 13: the
+output by name, puts both on the steps' grid (doc/frequency_response.md: the
 command acting over each step, the state stamped at its start) and returns
 H1 and the coherence of :mod:`leadscrew_sim.analysis.freqresp.welch`.
 """

@@ -1,5 +1,5 @@
 """
-The linear frequency response against oracles written here (physics.md section 13).
+The linear frequency response against oracles written here (doc/frequency_response.md).
 
 - the two-inertia resonance and anti-resonance of a compliant coupling, in closed form;
 - the drive's velocity and position loop bandwidths that doc/model.md reports,
@@ -144,7 +144,7 @@ def test_discretised_response_is_the_zoh_of_the_continuous():
     # 2e-3: the contact mode (~35 kHz) the oracle leaves out bends the response by 6e-4 at 150 Hz
     np.testing.assert_allclose(step.response, expect, rtol=2e-3)
     cont = linear_response(p, 'torque', 'motor_velocity', frequency=f)
-    # the hold's shift at 150 Hz and 1 kHz: +27 deg (physics.md 13)
+    # the hold's shift at 150 Hz and 1 kHz: +27 deg (doc/frequency_response.md, "step")
     shift = np.degrees(np.angle(step.response[2] / cont.response[2]))
     assert shift == pytest.approx(27.0, abs=0.1)
 

@@ -115,7 +115,8 @@ NOT_A_NUMBER = re.compile(r'\b(nan|inf)\b', re.IGNORECASE)   # 'resonance' holds
 
 
 def stuck_loop_oracle(p, f):
-    """Return L(f) of the velocity loop with the thread stuck at rest (rigid coupling, no lag).
+    """
+    Return L(f) of the velocity loop with the thread stuck at rest (rigid coupling, no lag).
 
     Stuck, each nut body moves as x = -r_m cot(lambda) q, its contact deflected by
     -r_m q / (sin cos): the rotor sees the spring k_eq = k r_m^2 / (sin cos)^2 (and the

@@ -1,5 +1,5 @@
 """
-Frequency response of the axis (physics.md section 13): linear, simulated and from a recording.
+Frequency response of the axis (doc/frequency_response.md): linear, simulated and from a recording.
 
 - :mod:`.response`: :class:`FrequencyResponse`, what every source returns.
 - :mod:`.plant`, :mod:`.linear`, :mod:`.loops`: the linearised axis (at rest

@@ -1,5 +1,7 @@
 """
-The linear frequency response: the plant under its drive, continuous and sampled (physics.md 13).
+The linear frequency response: the plant under its drive, continuous and sampled.
+
+See doc/frequency_response.md ("The linear model").
 
 Inputs (user senses, SI): ``torque`` (motor torque command [N m], theta
 sense, torque mode: no loop), ``velocity_command`` (nut velocity [m/s],

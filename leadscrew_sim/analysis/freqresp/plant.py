@@ -1,5 +1,5 @@
 """
-The linearised axis without its drive: the plant of a frequency response (doc/frequency_response.md).
+The linearised axis without its drive: the plant of a frequency response (doc/stability.md).
 
 The mechanics (masses, the thread's contact and friction, the coupling, the
 preload spring of a split nut) are those of the stability analysis,

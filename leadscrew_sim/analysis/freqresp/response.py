@@ -28,7 +28,7 @@ class FrequencyResponse:
     amplitude : float
         The input amplitude in the input's SI unit; NaN for the linear model.
     input, output : str
-        The signal names of interfaces.md (``torque``, ``motor_velocity``, ...),
+        The signal names of doc/frequency_response.md ("Signals": ``torque``, ...),
         or for a loop quantity ``input='velocity_loop'`` and ``output`` one of
         ``L``, ``S``, ``T``.
     source : str
@@ -67,7 +67,7 @@ class FrequencyResponse:
 
     @property
     def phase_deg(self):
-        """Phase of H, unwrapped along frequency over its finite nonzero points [deg] (else NaN)."""
+        """Phase of H, unwrapped along frequency over its finite nonzero points [deg], else NaN."""
         h = np.asarray(self.response)
         out = np.full(h.shape, np.nan)
         ok = np.isfinite(h) & (h != 0.0)

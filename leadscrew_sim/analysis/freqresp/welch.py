@@ -1,7 +1,7 @@
 """
 Broadband estimate of a frequency response: H1 and coherence by Welch averaging.
 
-physics.md section 13: H1 = P_uy / P_uu, coherence |P_uy|^2 / (P_uu P_yy),
+doc/frequency_response.md ("From a recording"): H1 = P_uy / P_uu, coherence |P_uy|^2 / (P_uu P_yy),
 the spectra averaged over Hann-windowed, half-overlapping segments
 (:func:`h1`). The series are sampled on the steps' grid t_k = t_0 + k T
 (:func:`align`) and paired as the simulated measurements pair them: y_k is
