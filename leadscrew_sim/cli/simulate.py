@@ -8,6 +8,7 @@ import sys
 
 from .args import add_compression_argument, add_deprecated_alias, PROG
 from .event_lines import print_events
+from ..analysis.excitation.profiles import PROFILES
 from ..offline.options import DEFAULT_PRESET
 from ..offline.simulate import simulate
 
@@ -47,8 +48,8 @@ def add_arguments(p):
     p.add_argument('--target', type=float, help='move target nut position [m] '
                    '(default initial + 10 mm)')
     p.add_argument('--speed', type=float, default=0.01, help='move reference speed [m/s]')
-    p.add_argument('--excite', metavar='PROFILE', help='an identification profile of '
-                   '`leadscrew_sim excite` (breakaway, sweep, reversals, iso230) as the input')
+    p.add_argument('--excite', metavar='PROFILE', help='a profile of `leadscrew_sim excite` '
+                   f'({", ".join(PROFILES)}) as the input')
     p.add_argument('--excite-opt', action='append', metavar='NAME=VALUE',
                    help='an option of the --excite profile (repeatable; SI units)')
     p.add_argument('--force', type=float, help='constant external axial force [N]')
