@@ -211,3 +211,15 @@ def test_points_without_a_result_summary_and_csv(tmp_path):
     ok = np.isfinite(h)
     phase = np.array([float(row[2] or 'nan') for row in rows])[ok]
     np.testing.assert_allclose(phase, np.degrees(np.angle(h[ok])), atol=1e-9)
+
+
+def test_simulate_excite_help_lists_every_registered_profile(capsys):
+    # the broadband profiles freqresp reads (chirp, multisine) among them
+    from leadscrew_sim.analysis.excitation.profiles import PROFILES
+    with pytest.raises(SystemExit) as done:
+        main(['simulate', '--help'])
+    assert done.value.code == 0
+    text = ' '.join(capsys.readouterr().out.split())      # argparse wraps the lines
+    listed = re.search(r'--excite PROFILE a profile of `leadscrew_sim excite` \(([^)]*)\)', text)
+    assert listed, text
+    assert set(listed.group(1).split(', ')) == set(PROFILES) >= {'chirp', 'multisine'}
