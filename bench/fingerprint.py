@@ -5,7 +5,10 @@ Run: .venv/bin/python bench/fingerprint.py [--seconds 10] [--out DIR]
 
 For every preset and four drives (hold: zero torque; track: a PD loop on the
 motor angle tracking x = 50 mm sin(2 pi 0.5 Hz t); sine: 0.5 max_torque at
-1 Hz; move: simulate's position move) it prints one SHA-256 per line:
+1 Hz; move: simulate's position move) it prints one SHA-256 per line (a
+stepper preset takes no torque: hold, track and sine are its position hold,
+position and velocity commands along x = 20 mm sin(2 pi 0.5 Hz t), move
+simulate's trapezoid):
 - ``model``: every output array of ``model.run`` in 1 s blocks, and every
   ``StepOutput`` of a tick-by-tick run (hold, track, sine);
 - ``simulate``: every message of the MCAP that ``leadscrew_sim simulate``
@@ -65,6 +68,51 @@ def model_hash(params, torques, keys=None):
     return h.hexdigest()
 
 
+def stepper_model_hash(params, rows, keys=None):
+    """SHA-256 of a stepper's model.run on command rows in 1 s blocks and tick by tick."""
+    h = hashlib.sha256()
+    m = LeadScrewModel(params, dt=1e-3)
+    for i in range(0, len(rows), 1000):
+        res = m.run(None, commands=rows[i:i + 1000])
+        for key in sorted(res if keys is None else keys):
+            h.update(key.encode())
+            h.update(np.ascontiguousarray(res[key]).tobytes())
+    m = LeadScrewModel(params, dt=1e-3)
+    for row in rows:
+        m.command(*row)
+        m.advance_held()
+        h.update(repr(m.output()).encode())
+    h.update(repr(sorted(m.energy().items())).encode())
+    return h.hexdigest()
+
+
+def stepper_prints(name, p, n, out, seconds, skip):
+    """Print the lines of a stepper preset: position hold and sine, velocity sine; simulate."""
+    t = np.arange(n) * 1e-3
+    m = LeadScrewModel(p)
+    x = p.initial_position + 0.02 * np.sin(2 * math.pi * 0.5 * t)
+    rows = dict(hold=np.tile([2.0, m.output().motor_angle, math.nan, math.nan], (n, 1)),
+                track=np.column_stack([np.full(n, 2.0), m.nut_to_motor(x), np.full(n, math.nan),
+                                       np.full(n, math.nan)]),
+                sine=np.column_stack([np.full(n, 1.0), np.full(n, math.nan),
+                                      m.nut_to_motor(x) - m.output().motor_angle,
+                                      np.full(n, math.nan)]))
+    for drive, r in rows.items():
+        print(f'{name:<14} {drive:<6} model    {stepper_model_hash(p, r)}', flush=True)
+    csv = out / f'{name}_track.csv'
+    csv.write_text(''.join(f'{k * 1e-3!r},{float(v)!r}\n' for k, v in enumerate(x)))
+    sim_args = dict(hold=[], track=['--position-csv', str(csv)],
+                    move=['--profile', 'trapezoid'])
+    for drive, extra in sim_args.items():
+        f = out / f'{name}_{drive}.mcap'
+        rc = cli_main(['simulate', '--preset', name, '--duration', str(seconds),
+                       '-q', '-o', str(f)] + extra)
+        print(f'{name:<14} {drive:<6} simulate rc={rc} {mcap_hash(f, skip)}', flush=True)
+        r = out / f'{name}_{drive}.resim.mcap'
+        rc = cli_main(['resim', str(f), '-q', '-o', str(r)])
+        print(f'{name:<14} {drive:<6} resim    rc={rc} {mcap_hash(r, skip)}', flush=True)
+
+
 def mcap_hash(path, skip=()):
     """SHA-256 of every message of an MCAP file (topic, times, sequence, payload) not in skip."""
     h = hashlib.sha256()
@@ -102,6 +150,9 @@ def main():
         out.mkdir(parents=True, exist_ok=True)
         for name in preset_names():
             p = load_preset(name)
+            if p.drive_type == 'stepper':
+                stepper_prints(name, p, n, out, args.seconds, skip)
+                continue
             t = np.arange(n) * 1e-3
             track = track_torques(p, n)
             drives = dict(hold=np.zeros(n), track=track,

@@ -20,7 +20,8 @@ The command rules of the axis, shared by the node and ``resim`` so that they can
   only updates the feed-forwards, whenever it comes.
 - Validation: a non-finite (other than NaN) or malformed command, or an
   external force beyond the range of the ``external_force`` parameter, is
-  rejected with a reason and never reaches the model.
+  rejected with a reason and never reaches the model; so is a torque command
+  (``torque_command``, or a ``joint_commands`` effort command) to a stepper.
 - Zero-order hold, and a timeout per mode, like a drive's reaction to a loss
   of communication: a stale torque command goes to 0 N m, a stale velocity
   command to a quick stop (ramp to zero, then hold the position), a position
@@ -62,8 +63,12 @@ JOINT_COMMAND_MODES = {'auto': None, 'position': MODE_POSITION, 'velocity': MODE
 #: command methods return for a command lost to ``drop_rate``.
 ACCEPTED, IGNORED, REJECTED, DROPPED = 'accepted', 'ignored', 'rejected', 'dropped'
 
-#: The drive command a model holds after reset: torque mode, 0 N m.
+#: The drive command a model holds after reset: torque mode, 0 N m (a stepper: a hold).
 INITIAL_COMMAND = (MODE_TORQUE, NAN, NAN, 0.0)
+
+#: Why a stepper drive refuses a torque command.
+STEPPER_TORQUE = ('torque commands are refused: a stepper drive (drive_type stepper) takes '
+                  'position and velocity commands only')
 
 
 class NutMap:
@@ -148,6 +153,7 @@ class CommandHold:
         self.received = 0           # drive commands received since start (the drop counter)
         self.dropped = 0            # of them lost to drop_rate
         self.delay, self.drop_rate, self.seed = 0, 0.0, 0
+        self.stepper = False        # a stepper drive refuses torque commands
         if params is not None:
             self.set_faults(params)
         self.reset()
@@ -160,12 +166,13 @@ class CommandHold:
         ----------
         params : ScrewParams
             ``command_delay`` [ticks], ``fault_command_drop_rate`` (0..1) and
-            ``sensor_seed``.
+            ``sensor_seed``; and ``drive_type``: a stepper refuses torque commands.
 
         """
         self.delay = int(params.command_delay)
         self.drop_rate = float(params.fault_command_drop_rate)
         self.seed = int(params.sensor_seed)
+        self.stepper = params.drive_type == 'stepper'
 
     def _lost(self):
         """Count a received drive command; return True if drop_rate loses it."""
@@ -237,6 +244,8 @@ class CommandHold:
             return DROPPED
         if not math.isfinite(value):
             return f'non-finite torque_command {value!r}'
+        if self.stepper:
+            return STEPPER_TORQUE
         self._set(MODE_TORQUE, NAN, NAN, value, time_ns)
         return None
 
@@ -331,6 +340,8 @@ class CommandHold:
         mode = self.joint_mode
         if mode is None:
             mode = MODE_POSITION if p == p else (MODE_VELOCITY if v == v else MODE_TORQUE)
+        if mode == MODE_TORQUE and self.stepper:
+            return REJECTED, f'joint_commands effort: {STEPPER_TORQUE}'
         elif (p, v, e)[(MODE_POSITION, MODE_VELOCITY, MODE_TORQUE).index(mode)] != \
                 (p, v, e)[(MODE_POSITION, MODE_VELOCITY, MODE_TORQUE).index(mode)]:
             # a feed-forward update: the mode's main command stays
@@ -391,7 +402,8 @@ class CommandHold:
 
         """
         v = np.asarray(values, dtype=float)
-        if self.delay > 0 or self.drop_rate > 0.0 or not len(v) or not np.isfinite(v).all():
+        if self.delay > 0 or self.drop_rate > 0.0 or not len(v) or not np.isfinite(v).all() \
+                or (self.stepper and kind == 'torque_command'):
             return None
         rows = np.empty((len(v), 4))
         m = self.nut_map

@@ -17,6 +17,7 @@ from .engine import drive as D
 from .engine import kernel as K
 from .engine import layout as L
 from .engine.packing import auto_substep
+from .output import lost_full_steps
 
 
 class DriveControl:
@@ -46,7 +47,8 @@ class DriveControl:
         Raises
         ------
         ValueError
-            If the mode is unknown or its command is not finite (nothing changes).
+            If the mode is unknown or its command is not finite, or a stepper is
+            given a torque command other than 0 N m (nothing changes).
 
         """
         code = DM.mode_code(mode)
@@ -56,6 +58,7 @@ class DriveControl:
                              f'{("effort", "velocity", "position", "")[code]} and finite '
                              f'feed-forwards; got position={position!r}, velocity={velocity!r}, '
                              f'effort={effort!r}')
+        self._refuse_torque(row)
         self.state[[L.S_CMODE, L.S_CQ, L.S_CW, L.S_CT]] = row[0]
 
     def advance_held(self, external_force=0.0):
@@ -89,7 +92,10 @@ class DriveControl:
         Clear a latched drive fault: the drive holds the current position (position mode, I = 0).
 
         The held command becomes that position hold, so the axis does not jump;
-        a new command takes over from the next step.
+        a new command takes over from the next step. A stepper's driver is
+        enabled again at the microstep it was at (its step generator holds
+        there): a rotor that moved while the windings were open snaps to the
+        nearest rest of that microstep, a whole number of electrical cycles away.
 
         Returns
         -------
@@ -103,6 +109,9 @@ class DriveControl:
         if code == DM.FAULT_NONE:
             return code
         q_fb = self._feedback_angle()
+        if self._P[L.P_STEPPER] > 0.5:
+            q_fb = s[L.S_SPOS]
+            s[L.S_SRATE] = 0.0
         s[[L.S_DFAULT, L.S_DINT, L.S_DTLIM, L.S_DQS, L.S_DFERR, L.S_DTOUT]] = 0.0
         s[L.S_DMODE] = s[L.S_CMODE] = DM.MODE_POSITION
         s[L.S_DQREF] = s[L.S_CQ] = q_fb
@@ -139,6 +148,35 @@ class DriveControl:
             effective_drive_rate=D.effective_rate(self.nsub, self.dt, self.params.drive_rate),
             drive_torque=float(hs * s[L.S_DTOUT]) + 0.0,
             velocity_reference=float(hs * s[L.S_DWREF]) + 0.0 if mode != DM.MODE_TORQUE else 0.0)
+
+    def stepper_status(self):
+        """
+        Return the stepper's state after the last step (None for a servo drive).
+
+        Returns
+        -------
+        dict or None
+            enabled (bool: no fault latched, the bridge on); step_position [rad]
+            and step_rate [rad/s], theta sense: the motor angle (its microstep)
+            and rate the step generator commands, what the controller believes;
+            microstep: the index of the commanded microstep from the initial
+            state; phase_current_a, phase_current_b [A] and current_set [A] (run
+            or hold current, 0 disabled); lost_full_steps: the full steps the rotor
+            lost against the command, a multiple of 4, simulation truth that a
+            real driver cannot know (:func:`.output.lost_full_steps`).
+
+        """
+        if self._P[L.P_STEPPER] <= 0.5:
+            return None
+        s, o, hs = self.state, self.out, self.params.hand_sign
+        position = hs * float(o[L.O_SCMD])
+        return dict(
+            enabled=int(s[L.S_DFAULT]) == DM.FAULT_NONE, step_position=position,
+            step_rate=hs * float(s[L.S_SRATE]) + 0.0, microstep=int(hs * s[L.S_SK]),
+            phase_current_a=float(o[L.O_IA]), phase_current_b=hs * float(o[L.O_IB]) + 0.0,
+            current_set=float(o[L.O_ISET]),
+            lost_full_steps=int(lost_full_steps(position, hs * s[L.S_QM],
+                                                self.params.rotor_teeth)))
 
     def held_command(self):
         """

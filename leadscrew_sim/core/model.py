@@ -26,7 +26,8 @@ from .engine import layout as L
 from .engine import sensors as SN
 from .faults import SimulationFault
 from .views import ReportedValues
-from .output import energy_balance, series_result, step_output, stored_energy
+from .output import (energy_balance, lost_full_steps, series_result, step_output,
+                     stored_energy)
 from .engine.packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
 from .params import ParameterError, ScrewParams
 
@@ -132,6 +133,9 @@ class LeadScrewModel(DriveControl, ReportedValues):
         s[L.S_HOME] = 1.0 if xa >= p.home_position else 0.0
         self.fault = None
         self.out[:] = 0.0
+        if p.drive_type == 'stepper':   # powered up at microstep 0, at the run current
+            s[L.S_SPOS] = q0
+            s[L.S_IA] = p.run_current
         td = D.update_period(self.nsub, self.dt, p.drive_rate) * (self.dt / self.nsub)
         SN.sample(self._P, s, q0, 0.0, xa, 0.0, td, 1.0, True)   # the readings at rest
         self._report_at_rest()
@@ -180,6 +184,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
         if not (math.isfinite(torque) and math.isfinite(external_force)):
             raise ValueError(f'non-finite input: torque={torque!r} N m, '
                              f'external_force={external_force!r} N')
+        self._refuse_torque()
         self._check_fault()
         if dt is None or dt == self.dt:
             dt, n = self.dt, self.nsub
@@ -231,12 +236,17 @@ class LeadScrewModel(DriveControl, ReportedValues):
             friction_dissipation, damping_dissipation). With ``commands`` also the drive's: mode,
             fault (codes), limit_min, limit_max, home (bool),
             following_error [rad], drive_torque (the drive's torque command
-            before the motor lag) [N m] and velocity_reference [rad/s].
+            before the motor lag) [N m] and velocity_reference [rad/s]. A
+            stepper's runs also have step_position [rad], step_rate [rad/s],
+            phase_current_a, phase_current_b, current_set [A]
+            (:data:`.output.STEPPER_VALUES`) and lost_full_steps (int, a
+            multiple of 4: :func:`.output.lost_full_steps`).
 
         Raises
         ------
         ValueError
-            If an input is not finite or the lengths differ (before anything runs).
+            If an input is not finite or the lengths differ, or a stepper is given
+            torques (before anything runs).
         SimulationFault
             If the state became non-finite.
 
@@ -248,8 +258,12 @@ class LeadScrewModel(DriveControl, ReportedValues):
         rec = np.empty((n, L.REC_STATE + L.NO))
         done = K.run_series(self._P, self.state, self.out, tq_q, fe, cmds,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
+        stepper = self.is_stepper
         res = series_result(rec[:done], hs, commands is not None or drive_values,
-                            float(self._P[L.P_CL]), float(self._P[L.P_SL]))
+                            float(self._P[L.P_CL]), float(self._P[L.P_SL]), stepper)
+        if stepper:
+            res['lost_full_steps'] = lost_full_steps(res['step_position'], res['motor_angle'],
+                                                     self.params.rotor_teeth)
         stored = stored_energy(self.params, self._P, rec[:done].T,
                                rec[:done, L.REC_STATE + L.O_JAM])
         res.update({name: e - e0 for name, e, e0 in
@@ -262,6 +276,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
         """Return :meth:`run`'s validated inputs: torques (q sense), forces, command rows."""
         hs = self.params.hand_sign
         if commands is None:
+            self._refuse_torque()
             tq = np.ascontiguousarray(torques, dtype=float)
             fe = (np.zeros_like(tq) if external_forces is None
                   else np.ascontiguousarray(external_forces, dtype=float))
@@ -273,6 +288,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
             raise ValueError('give torques or commands, not both (a torque mode command '
                              'row carries its torque as effort)')
         cmds = D.command_rows(commands, hs)   # validated, q sense
+        if self.is_stepper:
+            self._refuse_torque(cmds)
         fe = (np.zeros(len(cmds)) if external_forces is None
               else np.ascontiguousarray(external_forces, dtype=float))
         if fe.shape != (len(cmds),) or not np.isfinite(fe).all():
@@ -325,6 +342,9 @@ class LeadScrewModel(DriveControl, ReportedValues):
         else:
             o[L.O_JX] = s[L.S_XS]
         o[L.O_JV] = 0.0
+        if P[L.P_STEPPER] > 0.5:
+            o[L.O_IA] = o[L.O_ISET] = s[L.S_IA]
+            o[L.O_SCMD] = s[L.S_SPOS]
 
     def _check_fault(self):
         """Raise the latched SimulationFault again, if any (until reset())."""
@@ -335,6 +355,30 @@ class LeadScrewModel(DriveControl, ReportedValues):
         """Latch a fault and raise it: the one place a SimulationFault is created."""
         self.fault = message
         self._check_fault()
+
+    @property
+    def is_stepper(self):
+        """Return True if the motor is a stepper with its driver (``drive_type`` stepper)."""
+        return self.params.drive_type == 'stepper'
+
+    def _refuse_torque(self, rows=None):
+        """
+        Raise ValueError if the axis is a stepper and a torque is commanded.
+
+        ``rows``: command rows (q sense); a torque-mode row is refused unless its
+        torque is 0 (the hold a stepper keeps after reset). None: a torque input.
+        """
+        if not self.is_stepper:
+            return
+        if rows is not None:
+            bad = np.flatnonzero((rows[:, 0] == D.MODE_TORQUE) & (rows[:, 3] != 0.0))
+            if not len(bad):
+                return
+            what = f'command {bad[0]} is a torque command'
+        else:
+            what = 'torque inputs'
+        raise ValueError(f'{what}: a stepper drive (drive_type stepper) takes position and '
+                         'velocity commands only; torque commands are refused')
 
     def _P_hand(self):
         return self.params.hand_sign

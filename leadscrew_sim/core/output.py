@@ -80,14 +80,28 @@ REPORTED = {
     'following_error': (_O + L.O_DFERR, THETA_NO_NEG_ZERO, FLOAT),
     'drive_torque': (_O + L.O_DTCMD, THETA_NO_NEG_ZERO, FLOAT),
     'velocity_reference': (_O + L.O_DWREF, THETA_NO_NEG_ZERO, FLOAT),
+    'step_position': (_O + L.O_SCMD, THETA, FLOAT),
+    'step_rate': (_O + L.O_SRATE, THETA_NO_NEG_ZERO, FLOAT),
+    'phase_current_a': (_O + L.O_IA, AS_RECORDED, FLOAT),
+    'phase_current_b': (_O + L.O_IB, THETA, FLOAT),
+    'current_set': (_O + L.O_ISET, AS_RECORDED, FLOAT),
 }
 
 #: The drive's values: in the arrays of a run with command rows only.
 DRIVE_VALUES = ('mode', 'fault', 'limit_min', 'limit_max', 'home', 'following_error',
                 'drive_torque', 'velocity_reference')
 
+#: The stepper's values (physics.md section 14): in the arrays of a stepper's runs only.
+#: step_position [rad] and step_rate [rad/s]: the motor angle and rate the step
+#: generator commands (the angle of the microstep the driver sets); phase_current_a,
+#: phase_current_b [A] (physical phases: theta_e = N_r theta, i_a* = I cos, i_b* = I sin);
+#: current_set [A]: the amplitude I set (run or hold current, 0 disabled).
+STEPPER_VALUES = ('step_position', 'step_rate', 'phase_current_a', 'phase_current_b',
+                  'current_set')
+
 #: The arrays of every run, before the nut forces (:func:`nut_forces`) and the drive's.
-RUN_VALUES = tuple(n for n in REPORTED if n != 'substeps' and n not in DRIVE_VALUES)
+RUN_VALUES = tuple(n for n in REPORTED if n != 'substeps' and n not in DRIVE_VALUES
+                   and n not in STEPPER_VALUES)
 
 
 class Reading:
@@ -181,6 +195,7 @@ class StepOutput:
 _STEP = Reading(f.name for f in dataclasses.fields(StepOutput))
 _RUN = Reading(RUN_VALUES)
 _DRIVE = Reading(DRIVE_VALUES)
+_STEPPER = Reading(STEPPER_VALUES)
 
 
 def step_output(s, o, hs):
@@ -208,7 +223,7 @@ def _arrays(reading, r, hs):
             for name, v, kind in zip(reading.names, reading(r.T, hs), reading.kinds)}
 
 
-def series_result(r, hs, drive, cl=1.0, sl=0.0):
+def series_result(r, hs, drive, cl=1.0, sl=0.0, stepper=False):
     """
     Return the per-step arrays of a run from its records, in the theta sense.
 
@@ -222,6 +237,8 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0):
         Add the drive's outputs (a run with command rows).
     cl, sl : float
         cos and sin of the lead angle (the per-nut axial forces).
+    stepper : bool
+        Add the stepper's outputs (:data:`STEPPER_VALUES`).
 
     """
     res = _arrays(_RUN, r, hs)
@@ -230,7 +247,30 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0):
         res['axial_force'], cl, sl)
     if drive:
         res.update(_arrays(_DRIVE, r, hs))
+    if stepper:
+        res.update(_arrays(_STEPPER, r, hs))
     return res
+
+
+def lost_full_steps(step_position, motor_angle, rotor_teeth):
+    """
+    Return the full steps the rotor lost against the command: a multiple of 4 (simulation truth).
+
+    4 round(N_r (theta_cmd - theta_m) / (2 pi)): the whole electrical cycles
+    (4 full steps each) between the commanded angle and the rotor, whose
+    stable rest lies within a quarter cycle of its equilibrium; positive when
+    the rotor is behind a command in +theta. A real driver cannot know it.
+
+    Parameters
+    ----------
+    step_position, motor_angle : float or numpy.ndarray
+        Commanded and true motor angle [rad], theta sense.
+    rotor_teeth : float
+        N_r of the motor.
+
+    """
+    cycles = np.round(rotor_teeth * (np.asarray(step_position) - motor_angle) / (2.0 * np.pi))
+    return 4 * cycles.astype(int)
 
 
 def stored_energy(p, P, s, jam_side=None):

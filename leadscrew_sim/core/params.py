@@ -16,6 +16,9 @@ __all__ = ['ParameterError', 'ScrewParams']
 #: Values of drive_feedback: where the drive's position loop takes its angle from.
 DRIVE_FEEDBACKS = ('motor_encoder', 'linear_scale')
 
+#: Values of drive_type: the servo drive (physics.md section 10) or the stepper (section 14).
+DRIVE_TYPES = ('servo', 'stepper')
+
 
 @document
 @dataclasses.dataclass(frozen=True)
@@ -105,6 +108,45 @@ class ScrewParams(Schema):
                                  'less the hysteresis (an output only)', -1000.0, 1000.0)
     switch_hysteresis: float = field(1e-3, 'm', 'hysteresis of the limit and home switches',
                                      0.0, 1.0)
+    # Stepper motor and driver (physics.md section 14; used with drive_type stepper)
+    drive_type: str = field('servo', '-', 'the motor and its drive: a servo motor with the '
+                            'servo drive, or a two-phase hybrid stepper with a microstepping '
+                            'driver and a step generator (position and velocity commands only)',
+                            choices=DRIVE_TYPES, read_only=True)
+    step_angle: float = field(math.pi / 100, 'rad', 'full step angle pi / (2 N_r) of the '
+                              'stepper (1.8 deg: N_r = 50 rotor teeth)', 0.0, math.pi / 2,
+                              lo_open=True, read_only=True)
+    microsteps: int = field(16, '-', 'microsteps per full step of the driver, a power of two '
+                            '1 .. 256', 1, 256, read_only=True)
+    holding_torque: float = field(0.4, 'N m', 'holding torque T_h = K_m I at the phase '
+                                  'current amplitude I = run_current (peak static torque)',
+                                  0.0, 1e3, lo_open=True)
+    run_current: float = field(1.7, 'A', 'phase current amplitude while stepping (the peak of '
+                               'the sine and cosine microstep currents)', 0.0, 100.0,
+                               lo_open=True)
+    hold_current: float = field(0.85, 'A', 'phase current amplitude after hold_current_delay '
+                                'at standstill; at most run_current', 0.0, 100.0)
+    hold_current_delay: float = field(0.5, 's', 'standstill time after the last microstep '
+                                      'before the current drops to hold_current', 0.0, 3600.0)
+    phase_resistance: float = field(1.5, 'ohm', 'winding resistance R of a phase', 0.0, 1e3,
+                                    lo_open=True)
+    phase_inductance: float = field(2.8e-3, 'H', 'winding inductance L of a phase', 0.0, 10.0,
+                                    lo_open=True)
+    detent_torque: float = field(0.022, 'N m', 'detent torque amplitude T_d of the unpowered '
+                                 'motor (-T_d sin(4 theta_e)); below holding_torque', 0.0, 1e3)
+    supply_voltage: float = field(24.0, 'V', 'driver supply voltage V: each phase voltage is '
+                                  'clipped to +-V; above run_current * phase_resistance',
+                                  0.0, 1e3, lo_open=True)
+    current_loop_bandwidth: float = field(5000.0, 'Hz', 'bandwidth f_c of the driver\'s '
+                                          'averaged current loop: v = clip(R i* + K_i (i* - '
+                                          'i), +-V), K_i = 2 pi f_c L - R', 1.0, 1e6)
+    max_step_rate: float = field(2000.0, 'full steps/s', 'largest step rate of the step '
+                                 'generator (velocity of the trapezoid)', 0.0, 1e6, lo_open=True)
+    step_acceleration: float = field(20000.0, 'full steps/s^2', 'acceleration and deceleration '
+                                     'of the step generator\'s ramps (trapezoid, velocity '
+                                     'changes, quick stop)', 0.0, 1e9, lo_open=True)
+    rotor_damping: float = field(1e-4, 'N m s/rad', 'viscous damping B of the stepper rotor',
+                                 0.0, 10.0)
     # Sensors (physics.md section 11); all ideal by default
     encoder_counts: int = field(0, '-', 'motor encoder counts per revolution N; 0 means no '
                                 'quantisation', 0, 2 ** 31 - 1)
@@ -265,6 +307,46 @@ class ScrewParams(Schema):
         if self.drive_feedback == 'linear_scale' and not self.linear_scale:
             raise ParameterError('drive_feedback', "'linear_scale' needs a fitted scale "
                                  '(linear_scale true)')
+        if self.drive_type == 'stepper':
+            self._check_stepper()
         if self.collar_mu > 0.0 and self.collar_radius == 0.0:
             raise ParameterError('collar_radius', '0 m while collar_mu > 0: give the collar '
                                  'friction radius')
+
+    def _check_stepper(self):
+        """Check the stepper's figures against each other (drive_type stepper)."""
+        m = self.microsteps
+        if m & (m - 1):
+            raise ParameterError('microsteps', f'{m} is not a power of two (allowed: 1, 2, 4, '
+                                 '8, 16, 32, 64, 128, 256)')
+        if self.hold_current > self.run_current:
+            raise ParameterError('hold_current', f'{self.hold_current!r} A exceeds run_current '
+                                 f'{self.run_current!r} A (allowed: [0, {self.run_current!r}] A)')
+        if self.detent_torque >= self.holding_torque:
+            raise ParameterError('detent_torque', f'{self.detent_torque!r} N m is not below '
+                                 f'holding_torque {self.holding_torque!r} N m (allowed: '
+                                 f'[0, {self.holding_torque!r}) N m)')
+        need = self.run_current * self.phase_resistance
+        if self.supply_voltage <= need:
+            raise ParameterError('supply_voltage', f'{self.supply_voltage!r} V cannot drive '
+                                 f'run_current {self.run_current!r} A through phase_resistance '
+                                 f'{self.phase_resistance!r} ohm (allowed: above {need:.6g} V, '
+                                 'up to 1000 V)')
+        f_min = self.phase_resistance / (2.0 * math.pi * self.phase_inductance)
+        if self.current_loop_bandwidth < f_min:
+            raise ParameterError('current_loop_bandwidth', f'{self.current_loop_bandwidth!r} '
+                                 f'Hz is below the winding\'s own R / (2 pi L) = {f_min:.6g} Hz '
+                                 f'(allowed: [{f_min:.6g}, 1e6] Hz)')
+        if self.drive_feedback == 'linear_scale':
+            raise ParameterError('drive_feedback', "'linear_scale': the stepper drive runs open "
+                                 "loop (allowed: 'motor_encoder')")
+
+    @property
+    def rotor_teeth(self):
+        """Rotor teeth N_r = pi / (2 step_angle) of the stepper: electrical per motor angle."""
+        return math.pi / (2.0 * self.step_angle)
+
+    @property
+    def torque_constant(self):
+        """Stepper torque constant K_m = holding_torque / run_current [N m/A = V s/rad]."""
+        return self.holding_torque / self.run_current

@@ -21,8 +21,8 @@ def kernel_ready(report=None, params=None, always=True):
         ``report(text)`` is called with one line before and one after (e.g. a
         logger's info, or a print to stderr); None: silent.
     params : ScrewParams, optional
-        The axis to warm up with (default the tr12x3 preset): every preset
-        shares the same compiled code.
+        The axis to warm up with (default, and for a stepper, the tr12x3
+        preset): every preset shares the same compiled code.
     always : bool
         Report a load from the cache too; False: report only a compile.
 
@@ -42,7 +42,9 @@ def kernel_ready(report=None, params=None, always=True):
         report(f'loading the compiled kernel from {path}' if cached else
                f'compiling the kernel (once per machine and version, about 30 s) into {path}')
     t0 = time.monotonic()
-    m = LeadScrewModel(params or load_preset('tr12x3'))
+    if params is None or params.drive_type == 'stepper':   # the torque path needs a servo
+        params = load_preset('tr12x3')
+    m = LeadScrewModel(params)
     m.advance(0.0)                        # step
     m.command('torque', effort=0.0)
     m.advance_held(0.0)                   # step_held

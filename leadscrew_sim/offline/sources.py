@@ -357,12 +357,21 @@ def make_drive_source(args, params, profile=None):
         chosen.append('--profile trapezoid')
     if profile is not None and profile.kind != 'torque':
         chosen.append('--excite')
-    if not chosen:
-        return None
     torque = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv))
               if v is not None]
     if args.profile not in (None, 'trapezoid'):
         torque.append(f'--profile {args.profile}')
+    if params.drive_type == 'stepper':
+        if profile is not None and profile.kind == 'torque':
+            torque.append('--excite')
+        if torque:
+            raise RunError(f'{" and ".join(torque)}: a stepper axis (drive_type stepper) takes '
+                           'position and velocity inputs only; torque inputs are refused')
+        if not chosen:            # no input: the driver holds the initial position
+            x0 = params.initial_position
+            return DriveSource(x0, None), 'position_command', f'position={x0} (hold)'
+    if not chosen:
+        return None
     if len(chosen) + len(torque) > 1:
         raise RunError(f'give only one input, not {" and ".join(chosen + torque)}')
     if profile is not None:

@@ -42,7 +42,7 @@ DISPATCHERS = []
 #: constants of layout, drive and the core's drive_modes that numba freezes into the code
 #: of every user.
 KERNEL_SOURCES = ('_jit.py', 'layout.py', 'drive.py', 'friction.py', 'lcp.py', 'sensors.py',
-                  'stages.py', 'impulses.py',
+                  'stages.py', 'impulses.py', 'stepper.py',
                   'write_back.py', 'kernel.py', os.path.join('..', 'drive_modes.py'))
 
 #: File beside numba's cache entries holding the digest of KERNEL_SOURCES they came from.

@@ -33,6 +33,10 @@ from ._jit import kernel_jit, refresh_cache
 from .drive import FAULT_INJECTED, FAULT_NONE, MODE_TORQUE, update_period
 from .sensors import sample
 from .impulses import friction_impulses
+from .stepper import (
+    command_direction, load_stepper, stepper_constants, stepper_outputs, stepper_substep,
+    store_stepper,
+)
 from .stages import (
     body_constants, drive_constants, drive_update, friction_setup, held_command,
     inverse_masses, load_drive, load_state, smooth_forces, take_command, torque_path,
@@ -45,7 +49,7 @@ from .layout import (
     NO, N_CMD,
     P_CL, P_DQ0, P_DRATE, P_DSCALE, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT, P_FINJ, P_HOME,
     P_HYST, P_JAM, P_JAMX, P_LMAX, P_LMIN, P_MUC, P_RCOL, P_SFRZ, P_SIDEAL, P_TAU, P_TMAX,
-    P_TSCALE, P_VFT,
+    P_STEPPER, P_SWMAX, P_TSCALE, P_VFT,
     REC_ROW, REC_STATE,
     S_CMODE, S_CQ, S_CT, S_CW, S_EQ, S_EW, S_HOME, S_JAM, S_NREP, S_NSAMP, S_SWMAX, S_SWMIN,
     S_VS, S_XA, S_XS,
@@ -138,6 +142,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     # ideal live sensors read the truth: no sampling in the substeps, the feedback is the state
     ideal_fb = (P[P_EIDEAL] > 0.5 and P[P_EFRZ] <= 0.5 and P[P_SIDEAL] > 0.5
                 and P[P_SFRZ] <= 0.5)
+    # the stepper (stepper.py) replaces the servo drive and the motor's torque lag
+    stepper = P[P_STEPPER] > 0.5
+    stc = stepper_constants(P, h)
+    s_wmax = P[P_SWMAX]
     n_steps = torques.shape[0] if ncmd == 0 else min(torques.shape[0], ncmd)
     for i in range(n_steps):
         fext = P[P_FEXT] + forces[i]
@@ -160,7 +168,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         # limit and home switches, as the end of the last step left them
         sw_min = S[S_SWMIN] > 0.5
         sw_max = S[S_SWMAX] > 0.5
-        drive_on = d_mode != MODE_TORQUE
+        drive_on = d_mode != MODE_TORQUE and not stepper
         count_phase = drive_on or not ideal_fb   # else the phase advances once, after the step
         # bounds of the velocity reference: the velocity limit, and 0 toward a tripped
         # switch (rt > 0: w_ref < 0 moves the nut toward -x); one clip applies both
@@ -175,6 +183,14 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             d_tout = t_sat
         (qm, q, xa, xb, wm, dq, va, vb, te, t, win, wext, efric, edamp, faprev,
          mode_a, mode_b, mode_c, mode_g, nsearch) = load_state(S)
+        ia, ib, s_pos, s_rate, s_k, s_idle = load_stepper(S)
+        ca = sa = i_amp = 0.0
+        s_lo = s_hi = 0.0
+        if stepper:   # no torque: the generator's rate bounds, 0 toward a tripped switch
+            t_sat = d_tout = 0.0
+            ca, sa = command_direction(s_k, stc)
+            s_lo = 0.0 if sw_min else -s_wmax
+            s_hi = 0.0 if sw_max else s_wmax
         flo_a = fup_a = flo_b = fup_b = 0.0
         imp_a = imp_b = imp_c = imp_g = 0.0
         sum_in = sum_ext = sum_damp = sum_fric = 0.0
@@ -199,7 +215,13 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                                         d_wqs, d_ferr, d_wref, dc)
                 t_sat = d_tout
             for _ in range(seg):
-                te_new = te + alpha * (t_scale * t_sat - te)
+                if stepper:
+                    (te_new, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs,
+                     i_amp) = stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa,
+                                              d_mode, d_qref, d_qs, c_w, s_lo, s_hi,
+                                              d_fault == FAULT_NONE, t_scale, stc)
+                else:
+                    te_new = te + alpha * (t_scale * t_sat - te)
                 f_m, f_s, f_a, f_b, ct = smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new,
                                                        fext, jam_side, jam_x, bc)
                 flo_a, fup_a, flo_b, fup_b = ct[0], ct[1], ct[2], ct[3]
@@ -283,6 +305,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         sw_min, sw_max, home = switch_states(xa, sw_min, sw_max, S[S_HOME] > 0.5, sc)
         store_drive(S, c_mode, c_q, c_w, c_t, d_mode, d_qref, d_int, d_tout, d_phase, d_fault,
                     d_tlim, d_qs, d_wqs, d_ferr, d_wref, sw_min, sw_max, home, jam_side)
+        if stepper:
+            store_stepper(S, ia, ib, s_pos, s_rate, s_k, s_idle)
         if ideal_fb:   # the readings of ideal sensors: the truth at the step's end
             S[S_EQ] = qm
             S[S_EW] = wm
@@ -295,6 +319,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         # no drive sample at the step's end (and sensors not ideal): the sensors are read now
         sensor_outputs(P, S, out, qm, wm, q, dq, xa, va, d_phase == 0 or ideal_fb, q_ref0,
                        x_ref0, rt)
+        if stepper:
+            stepper_outputs(P, out, ia, ib, s_k, s_rate, i_amp, rt, q_ref0, x_ref0)
         for j in range(REC_STATE):
             rec[i, j] = S[j]
         for j in range(NO):

@@ -18,6 +18,11 @@ drive's own state: mode, target, integral, held torque, update phase, fault,
 switches) and its outputs O_DMODE .. O_DWREF; a command row of step_held()
 and run_series is N_CMD floats (mode, q, w, torque), all in the q sense.
 
+The stepper (stepper.py, physics.md section 14) has its parameter slots
+P_STEPPER .. P_SNOENC, its state S_IA .. S_SIDLE (phase currents, the step
+generator) and its outputs O_IA .. O_ISET; it uses the servo drive's held
+command, mode, target, quick stop and fault slots as they are.
+
 The sensors (sensors.py) have their parameter slots P_ECPR .. P_SEED, the
 faults the kernel applies P_EFRZ .. P_FINJ, their state S_EQ .. S_NREP (the
 last readings and the noise counters) and the reported joint values O_JQ .. O_JV.
@@ -91,7 +96,24 @@ P_JAM = P_DRATE + 28    # 1.0: a rigid obstacle (end stop law) at P_JAMX blocks 
 P_JAMX = P_DRATE + 29   # jam position [m]
 P_TSCALE = P_DRATE + 30  # motor torque scale 0..1 (a weakened motor delivers this share)
 P_FINJ = P_DRATE + 31   # 1.0: a drive fault is injected (latched while set)
-NP = P_DRATE + 32       # length of P
+# stepper motor and driver (stepper.py, physics.md section 14; motor quantities in the q sense)
+P_STEPPER = P_DRATE + 32  # 1.0: the motor is a stepper with its driver (no servo drive)
+P_NR = P_DRATE + 33     # rotor teeth N_r: electrical angle per motor angle [-]
+P_USTEP = P_DRATE + 34  # microstep angle: step angle / microsteps [rad]
+P_KM = P_DRATE + 35     # torque and back-EMF constant K_m [N m/A = V s/rad]
+P_IRUN = P_DRATE + 36   # run current amplitude [A]
+P_IHOLD = P_DRATE + 37  # hold current amplitude [A]
+P_THOLD = P_DRATE + 38  # standstill time before the hold current [s]
+P_RPH = P_DRATE + 39    # phase resistance R [ohm]
+P_LPH = P_DRATE + 40    # phase inductance L [H]
+P_TDET = P_DRATE + 41   # detent torque amplitude T_d [N m]
+P_VSUP = P_DRATE + 42   # supply voltage V: the phase voltage clip [V]
+P_KI = P_DRATE + 43     # current loop gain K_i [V/A]
+P_SWMAX = P_DRATE + 44  # step generator's largest rate [rad/s]
+P_SACC = P_DRATE + 45   # step generator's acceleration [rad/s^2]
+P_BROT = P_DRATE + 46   # rotor viscous damping B [N m s/rad]
+P_SNOENC = P_DRATE + 47  # 1.0: no encoder (joint_states reports the commanded steps)
+NP = P_DRATE + 48       # length of P
 
 # State vector S (float64[N_STATE]) --------------------------------------------
 S_QM = 0        # motor angle [rad]
@@ -139,7 +161,14 @@ S_VS = 41       # nut velocity from the scale (difference quotient, filtered) [m
 S_NSAMP = 42    # sensor samples taken since reset: the index of the next noise pair [-]
 S_JAM = 43      # side the jam blocks: 1 motion toward +x, -1 toward -x, 0 no jam [-]
 S_NREP = 44     # readings reported between drive samples since reset: their noise index [-]
-N_STATE = 45    # length of S
+# stepper (stepper.py): phase currents and the step generator, q sense
+S_IA = 45       # phase A current [A]
+S_IB = 46       # phase B current [A] (q sense: h times the physical phase B current)
+S_SPOS = 47     # step generator position: the motor angle commanded, unquantised [rad]
+S_SRATE = 48    # step generator rate [rad/s]
+S_SK = 49       # microstep index k of the commanded angle P_DQ0 + k microstep [-]
+S_SIDLE = 50    # standstill time since the last microstep [s]
+N_STATE = 51    # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]
@@ -174,7 +203,13 @@ O_JW = 27       # screw joint rate from the encoder [rad/s]
 O_JX = 28       # nut joint position: the scale, or the encoder through the lead [m]
 O_JV = 29       # nut joint velocity, from the same sensor [m/s]
 O_JAM = 30      # side the jam blocks (S_JAM) at the end of the step [-]
-NO = 31         # length of out
+# stepper (stepper.py), q sense; 0 for the servo drive
+O_IA = 31       # phase A current [A]
+O_IB = 32       # phase B current [A] (q sense)
+O_SCMD = 33     # commanded motor angle: P_DQ0 + S_SK microsteps [rad]
+O_SRATE = 34    # step generator rate [rad/s]
+O_ISET = 35     # phase current amplitude set: run or hold current, 0 disabled [A]
+NO = 36         # length of out
 
 # Records of run_series: one row per step ------------------------------------------
 REC_STATE = 14                  # a row starts with S[0:REC_STATE] (positions .. energies)

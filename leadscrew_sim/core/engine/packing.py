@@ -69,7 +69,42 @@ def pack_params(p):
     F.pack_friction(p, v)
     SN.pack_sensors(p, v)
     pack_drive(p, v, initial_seating(p, v)[0])
+    pack_stepper(p, v)
     return v
+
+
+def pack_stepper(p, v):
+    """
+    Fill the stepper's slots of the parameter vector v from ScrewParams p (stepper.py).
+
+    Every set packs them (a servo set's stepper figures are valid defaults);
+    P_STEPPER says whether the kernel runs the stepper.
+
+    Parameters
+    ----------
+    p : ScrewParams
+        The parameters.
+    v : numpy.ndarray
+        The parameter vector (layout.NP floats).
+
+    """
+    v[L.P_STEPPER] = 1.0 if p.drive_type == 'stepper' else 0.0
+    v[L.P_NR] = p.rotor_teeth
+    v[L.P_USTEP] = p.step_angle / p.microsteps
+    v[L.P_KM] = p.torque_constant
+    v[L.P_IRUN] = p.run_current
+    v[L.P_IHOLD] = p.hold_current
+    v[L.P_THOLD] = p.hold_current_delay
+    v[L.P_RPH] = p.phase_resistance
+    v[L.P_LPH] = p.phase_inductance
+    v[L.P_TDET] = p.detent_torque
+    v[L.P_VSUP] = p.supply_voltage
+    v[L.P_KI] = max(0.0, 2.0 * math.pi * p.current_loop_bandwidth * p.phase_inductance
+                    - p.phase_resistance)
+    v[L.P_SWMAX] = p.max_step_rate * p.step_angle
+    v[L.P_SACC] = p.step_acceleration * p.step_angle
+    v[L.P_BROT] = p.rotor_damping
+    v[L.P_SNOENC] = 1.0 if p.encoder_counts == 0 else 0.0
 
 
 def pack_drive(p, v, q0):
@@ -182,6 +217,9 @@ def auto_substep(p):
     """
     Return the largest stable substep [s]: 0.2 / omega_max, and 0.2 / damping rate.
 
+    A stepper also bounds it by 0.2 / its rotor's magnetic frequency and 0.1 /
+    the electrical frequency at the largest step rate.
+
     Capped at ``p.substep`` when that is set; 1 ms if nothing bounds it.
 
     Parameters
@@ -192,6 +230,14 @@ def auto_substep(p):
     """
     omega, rate = stiffest_mode(p)
     h = min(0.2 / omega if omega > 0 else math.inf, 0.2 / rate if rate > 0 else math.inf)
+    if p.drive_type == 'stepper':
+        # the rotor on its magnetic spring N_r (T_h + 4 T_d), and the electrical
+        # frequency N_r w at the largest step rate: the current set points and the
+        # back-EMF are held at their mid-substep values, an error of order (N_r w h)^2
+        n_r = p.rotor_teeth
+        w_mag = math.sqrt(n_r * (p.holding_torque + 4.0 * p.detent_torque) / p.motor_inertia)
+        w_el = n_r * p.max_step_rate * p.step_angle
+        h = min(h, 0.2 / w_mag, 0.1 / w_el)
     if p.substep > 0.0:
         h = min(h, p.substep)
     return h if math.isfinite(h) else 1e-3
