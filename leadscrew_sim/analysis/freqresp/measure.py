@@ -207,25 +207,17 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
     if int(settle) < 0 or int(periods) < 1:
         raise ParameterError('periods', f'settle {settle!r} and periods {periods!r}: need '
                              'settle >= 0 and periods >= 1')
-    out = []
     if method == 'sine':
         f = np.unique([grid_frequency(fi, dt)[0] for fi in frequencies(fmin, fmax, points)])
         tasks = [dict(where=where, output=output, frequency=fi, amplitude=a, dt=dt,
                       settle=settle, periods=periods, settle_time=settle_time, mode=mode,
                       quantity=quantity, speed=speed) for a in amps for fi in f]
         pts = run_points(params, tasks, workers, scheduler)
-        for i, a in enumerate(amps):
-            rows = _merge(pts[i * len(f):(i + 1) * len(f)])
-            bad = sum(1 for r in rows if not np.isfinite(r['response']))
-            extra = [f'{bad} of {len(rows)} frequencies without a result (a drive fault '
-                     'latched or the run went non-finite: lower the amplitude)'] if bad else []
-            out.append(FrequencyResponse(
-                np.array([r['frequency'] for r in rows]),
-                np.array([r['response'] for r in rows]),
-                np.array([r['coherence'] for r in rows]), a, name_in, name_out, 'sine',
-                [f'sine dwell: frequencies on the {1.0 / dt:g} Hz step grid, {settle} periods '
-                 f'(at least {settle_time:.3g} s) discarded, {periods} kept'] + extra))
-        return out
+        note = (f'sine dwell: frequencies on the {1.0 / dt:g} Hz step grid, {settle} periods '
+                f'(at least {settle_time:.3g} s) discarded, {periods} kept')
+        return [_sine_response(pts[i * len(f):(i + 1) * len(f)], a, name_in, name_out, note)
+                for i, a in enumerate(amps)]
+    out = []
     if speed != 0.0:
         raise ParameterError('speed', f'{speed!r} m/s: {method} runs start at rest (speed 0); '
                              'the sine dwell and the linear model take a speed')
@@ -242,6 +234,18 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
         out.append(FrequencyResponse(r['frequency'], r['response'], r['coherence'], a, name_in,
                                      name_out, method, [note]))
     return out
+
+
+def _sine_response(points, amplitude, name_in, name_out, note):
+    """Return the :class:`FrequencyResponse` of one amplitude's sine dwell points."""
+    rows = _merge(points)
+    bad = sum(1 for r in rows if not np.isfinite(r['response']))
+    extra = [f'{bad} of {len(rows)} frequencies without a result (a drive fault '
+             'latched or the run went non-finite: lower the amplitude)'] if bad else []
+    return FrequencyResponse(np.array([r['frequency'] for r in rows]),
+                             np.array([r['response'] for r in rows]),
+                             np.array([r['coherence'] for r in rows]), amplitude, name_in,
+                             name_out, 'sine', [note] + extra)
 
 
 def _merge(rows):
