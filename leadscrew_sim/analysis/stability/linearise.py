@@ -172,7 +172,8 @@ def state_matrix(op, params, slope=None):
     mass, f, bodies = mechanics(op, params, slope)
     im, iq, nuts = bodies.q_m, bodies.q, list(bodies.nuts)
     n = len(mass)
-    velocity = op['drive'] == 'velocity'
+    stepper = op.get('stepper')
+    velocity = op['drive'] == 'velocity' and stepper is None
     extra = []
     if velocity:
         if p.velocity_integral_time > 0.0:
@@ -186,6 +187,10 @@ def state_matrix(op, params, slope=None):
     a[:n, n:2 * n] = np.eye(n)
     a[n:2 * n, :2 * n] = f / mass[:, None]
     translation = None
+    if stepper is not None:        # the rotor on the magnetic spring k_e, its damping B
+        jm = im if im is not None else iq
+        a[n + jm, jm] -= stepper[0] / mass[jm]
+        a[n + jm, n + jm] -= stepper[1] / mass[jm]
     if velocity:
         jm = im if im is not None else iq
         ex = {name: 2 * n + i for i, name in enumerate(extra)}

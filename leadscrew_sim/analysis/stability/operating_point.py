@@ -119,6 +119,39 @@ def _split_nut(p, load, s, mu0, v):
     return ((sa, abs(load + f_s) / da), (sb, abs(load_b - f_s) / db)), f_s
 
 
+def _stepper_state(p, v, omega, torque):
+    """
+    Return (k_e [N m/rad], B [N m s/rad], load angle [rad]) of a stepper turning at omega.
+
+    The step generator turns the commanded angle at omega and the chopper keeps
+    the run current, so the rotor lags by the load angle phi with T_h sin(N_r
+    phi) = torque + B omega (the thread and bearings' need plus the rotor's
+    damping) and sees the magnetic stiffness k_e = N_r T_h cos(N_r phi). The
+    detent torque, periodic at 4 N_r omega, averages out and is left out.
+    Refused: a rate beyond max_step_rate, a torque at or beyond the holding
+    torque (the stepper loses steps), and a speed where the supply voltage
+    cannot drive the run current against the winding's impedance and the
+    back-EMF: I sqrt(R^2 + (N_r omega L)^2) + K_m |omega| > V.
+    """
+    nr, t_h = p.rotor_teeth, p.holding_torque
+    w_max = p.max_step_rate * p.step_angle
+    if abs(omega) > w_max:
+        raise ParameterError('max_step_rate', f'{p.max_step_rate!r} full steps/s is below the '
+                             f'{abs(omega) / p.step_angle:.4g} full steps/s {v!r} m/s needs')
+    need = torque + p.rotor_damping * omega
+    if abs(need) >= t_h:
+        raise ParameterError('holding_torque', f'{t_h!r} N m is below the {abs(need):.4g} N m '
+                             f'steady sliding at {v!r} m/s needs: the stepper loses steps')
+    volts = (p.run_current * math.hypot(p.phase_resistance, nr * omega * p.phase_inductance)
+             + p.torque_constant * abs(omega))
+    if volts > p.supply_voltage:
+        raise ParameterError('speed', f'{v!r} m/s needs {volts:.4g} V per phase to keep the run '
+                              f'current, above supply_voltage {p.supply_voltage!r} V (the '
+                              'stepper\'s torque falls there; the linear model does not hold)')
+    phi = math.asin(need / t_h) / nr
+    return nr * t_h * math.cos(nr * phi), p.rotor_damping, phi
+
+
 def operating_point(params, speed, drive='velocity'):
     """
     Return the steady sliding state of the axis at nut speed ``speed``, q sense.
@@ -143,7 +176,9 @@ def operating_point(params, speed, drive='velocity'):
         [m]), G, J_e [kg m^2] and the drive's w_ref [rad/s] and integral [rad];
         of nut A, and half-nut B with a split nut: nuts ((sigma, |N0| [N]) each),
         deltas (each x - r_t q [m]) and spring (the preload force F_s [N], 0
-        for a single nut).
+        for a single nut); stepper: (k_e [N m/rad], B [N m s/rad], load angle
+        [rad]) when a stepper holds the speed (drive 'velocity' on a stepper
+        axis), else None.
 
     Raises
     ------
@@ -191,10 +226,14 @@ def operating_point(params, speed, drive='velocity'):
     g = load_factor(mu0, tl, nuts[0][0] * s)
     j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + rm * rt * sum(
         m * load_factor(mu0, tl, sg * s) for m, (sg, _) in zip(masses, nuts))
-    w_ref, integral = _drive_state(p, drive, v, omega, torque)
+    stepper = None
+    if p.drive_type == 'stepper' and drive == 'velocity':
+        w_ref, integral, stepper = omega, 0.0, _stepper_state(p, v, omega, torque)
+    else:
+        w_ref, integral = _drive_state(p, drive, v, omega, torque)
     sigma, n_abs = nuts[0]
     return dict(speed=v, omega=omega, s=s, sigma=sigma, vs0=vs0, mu0=mu0,
                 slope=law.slope(vs0), load=load, N0=sigma * n_abs, Fa0=fa0, torque=torque,
                 twist=twist, delta0=deltas[0], G=g, J_e=j_e, w_ref=w_ref, integral=integral,
                 rigid=rigid, drive=drive, nuts=tuple(nuts), deltas=tuple(deltas),
-                spring=spring)
+                spring=spring, stepper=stepper)
