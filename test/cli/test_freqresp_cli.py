@@ -223,3 +223,23 @@ def test_simulate_excite_help_lists_every_registered_profile(capsys):
     listed = re.search(r'--excite PROFILE a profile of `leadscrew_sim excite` \(([^)]*)\)', text)
     assert listed, text
     assert set(listed.group(1).split(', ')) == set(PROFILES) >= {'chirp', 'multisine'}
+
+
+@pytest.mark.parametrize('output', ['L', 'S', 'T', 'motor_velocity'])
+@pytest.mark.parametrize('case', ['all lost', 'zero', 'one point'])
+def test_summary_without_data_says_so(output, case):
+    # every point lost, a zero gain, or a single point: no figure can be formed
+    from leadscrew_sim.analysis.freqresp.response import FrequencyResponse
+    from leadscrew_sim.analysis.freqresp.summary import summary_lines
+    f = np.geomspace(1.0, 100.0, 10)
+    h = {'all lost': np.full(10, np.nan + 0j), 'zero': np.zeros(10, complex),
+         'one point': np.r_[np.full(9, np.nan), 0.5] + 0j}[case]
+    loop = output in ('L', 'S', 'T')
+    r = FrequencyResponse(f, h, np.full(10, np.nan), 0.1,
+                          'velocity_loop' if loop else 'torque', output, 'sine')
+    with np.errstate(all='raise'):           # and no silent division by zero on the way
+        text = '\n'.join(summary_lines([r, r]))
+    assert not NOT_A_NUMBER.search(text), text
+    assert 'bandwidth: none in 1-100 Hz (too few points with a finite gain)' in text
+    if loop:
+        assert 'margins: none (too few points with a finite, nonzero L)' in text

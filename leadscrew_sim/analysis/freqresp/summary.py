@@ -106,8 +106,9 @@ def margins(f, loop):
         L at f.
 
     """
-    ok = np.isfinite(loop)                   # points without a result left out
-    f, loop = np.asarray(f, float)[ok], np.asarray(loop)[ok]
+    loop = np.asarray(loop)
+    ok = np.isfinite(loop) & (loop != 0.0)   # points without a result (or a phase) left out
+    f, loop = np.asarray(f, float)[ok], loop[ok]
     if len(f) < 2:
         return dict(gain_margin_db=math.inf, gain_margin_frequency=math.nan,
                     phase_margin_deg=math.nan, crossover=math.nan, ms=math.nan)
@@ -127,8 +128,10 @@ def margins(f, loop):
             g = -20.0 * math.log10(np.interp(math.log(w), np.log(f), mag))
             if g < gm:
                 gm, wg = g, w
+    with np.errstate(divide='ignore'):      # 1 + L = 0: unbounded
+        ms = float(np.max(1.0 / np.abs(1.0 + loop)))
     return dict(gain_margin_db=gm, gain_margin_frequency=wg, phase_margin_deg=pm,
-                crossover=wc, ms=float(np.max(1.0 / np.abs(1.0 + loop))))
+                crossover=wc, ms=ms)
 
 
 def amplitude_range(responses, limit_db=1.0):
@@ -196,6 +199,8 @@ def bandwidth_text(r):
 def margin_text(r, loop):
     """Return the summary's margins line of L at r's frequencies: numbers, or 'none' and why."""
     m = margins(r.frequency, loop)
+    if math.isnan(m['ms']):
+        return 'margins: none (too few points with a finite, nonzero L)'
     parts = []
     if math.isfinite(m['gain_margin_db']):
         parts.append(f'gain margin {m["gain_margin_db"]:.3g} dB at '
@@ -212,8 +217,6 @@ def margin_text(r, loop):
     if math.isfinite(m['ms']):
         db = round(20.0 * math.log10(m['ms']), 2) + 0.0        # no '-0.00'
         parts.append(f'peak sensitivity {m["ms"]:.3g} ({db:.2f} dB)')
-    elif math.isnan(m['ms']):
-        parts.append('peak sensitivity: none (too few points with a finite L)')
     else:
         parts.append('peak sensitivity: unbounded (1 + L = 0 in the band)')
     return ', '.join(parts)
@@ -250,9 +253,15 @@ def summary_lines(responses, linear=None):
     if freqs:
         lines.append(f'gain depends on amplitude by > 1 dB at {freqs[0]:.4g}..{freqs[-1]:.4g} Hz '
                      f'for amplitudes {amps[0]:.4g}..{amps[-1]:.4g} (against the largest)')
-    elif len(responses) > 1:
+    elif len(responses) > 1 and _compared(responses):
         lines.append('gain within 1 dB across the amplitudes')
     return lines
+
+
+def _compared(responses):
+    """Return True if the amplitudes' gains share a finite point to compare."""
+    ok = [np.isfinite(r.magnitude_db) for r in responses]
+    return len({len(o) for o in ok}) == 1 and bool(np.logical_and.reduce(ok).any())
 
 
 def _loop_from(r):
