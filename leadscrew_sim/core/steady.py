@@ -56,8 +56,20 @@ def place_sliding(model, op, stuck=False, velocity_factor=1.0):
         s[L.S_DMODE] = MODE_VELOCITY
         s[L.S_DINT] = op['integral']
         s[L.S_DWREF] = op['w_ref']
+    if op.get('stepper') is not None:
+        _place_stepper(s, P, op['stepper'][2], 0.0 if stuck else omega)
     if velocity_factor != 1.0:
         s[L.S_VA] *= velocity_factor
+
+
+def _place_stepper(s, P, phi, rate):
+    """Put the step generator phi [rad] ahead of the rotor at rate [rad/s], currents on set."""
+    pos = s[L.S_QM] + phi
+    k = round((pos - P[L.P_DQ0]) / P[L.P_USTEP])
+    angle = P[L.P_NR] * k * P[L.P_USTEP]
+    s[L.S_SPOS], s[L.S_SRATE], s[L.S_SK], s[L.S_SIDLE] = pos, rate, k, 0.0
+    s[L.S_IA] = P[L.P_IRUN] * np.cos(angle)
+    s[L.S_IB] = P[L.P_IRUN] * np.sin(angle)
 
 
 def run_prescribed_motor(model, n, omega):

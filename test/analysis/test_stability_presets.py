@@ -5,6 +5,7 @@ The oracles follow the equations of doc/model.md (thread contact, Stribeck
 friction, coupling, the servo's PI velocity loop, the preload spring of the
 split nut) linearised about steady sliding, in the test's own coordinates.
 """
+import dataclasses
 import math
 
 import numpy as np
@@ -48,13 +49,34 @@ def steady_nuts(p, v):
     return [nut(w_a + f_s), nut(w_b - f_s)]
 
 
+def own_stepper_stiffness(p, v):
+    """
+    Return the magnetic stiffness N_r T_h cos(N_r phi) [N m/rad] of a stepper raising at v.
+
+    The rotor lags the commanded angle by phi: T_h sin(N_r phi) is the thread's
+    torque r_m (sin + mu' cos) N per nut body plus the bearing's and the rotor's
+    viscous torques (no collar, no Coulomb bearing or guide terms here).
+    """
+    rm, rt, lam, _ = geometry(p)
+    sl, cl = math.sin(lam), math.cos(lam)
+    mu, _ = friction(p, v / sl)
+    omega = v / rt
+    torque = sum(rm * (sg * sl + mu * cl) * nn for sg, nn in steady_nuts(p, v)) \
+        + (p.bearing_viscous + p.rotor_damping) * omega
+    nr = math.pi / (2.0 * p.step_angle)
+    return nr * p.holding_torque * math.cos(math.asin(torque / p.holding_torque))
+
+
 def own_matrix(p, v, drive):
     """
     First-order matrix of the axis raised at v > 0: q_m (velocity drive), q, x_A (, x_B).
 
     Velocity drive: T = -K_v q_m' - (K_v / T_i) q_m (the PI loop; its integral state
-    is -q_m in the perturbation). Ideal drive: q_m = 0. The collar is frictionless.
+    is -q_m in the perturbation). Ideal drive: q_m = 0. Stepper (rigid coupling):
+    T = -k_e q - B q' on the screw and rotor. The collar is frictionless.
     """
+    if drive == 'stepper':
+        return own_stepper_matrix(p, v)
     rm, rt, lam, _ = geometry(p)
     sl, cl = math.sin(lam), math.cos(lam)
     _, slope = friction(p, v / sl)
@@ -96,6 +118,20 @@ def own_matrix(p, v, drive):
     a[:n, n:] = np.eye(n)
     a[n:] = f / mass[:, None]
     return a
+
+
+def own_stepper_matrix(p, v):
+    """
+    First-order matrix [q, x_A, q', x_A'] of a stepper axis with a rigid coupling.
+
+    Screw and rotor (J_s + J_m) are tied to the commanded angle by k_e and B:
+    the ideal drive's compliant coupling with k_c = k_e, c_c = B.
+    """
+    assert p.coupling_stiffness == 0.0
+    return own_matrix(dataclasses.replace(
+        p, drive_type='servo', coupling_stiffness=own_stepper_stiffness(p, v),
+        coupling_damping=p.rotor_damping, screw_inertia=p.screw_inertia + p.motor_inertia),
+        v, 'ideal')
 
 
 def own_growth(p, v, drive):
@@ -180,3 +216,28 @@ def test_every_preset_classified(name):
             assert math.isfinite(row['growth_rate'])
     res = nonlinear_stability(p, 1e-3, 'velocity', duration=0.5)
     assert res['verdict'] in ('stable', 'limit_cycle', 'bistable')
+
+
+def test_stepper_axis_modes_and_refusals():
+    """A stepper holding the speed: the rotor on its magnetic spring; steps lost are refused."""
+    p = load_preset('nema23_tr12x3', collar_mu=0.0)
+    assert p.coupling_stiffness == 0.0 and p.bearing_coulomb == 0.0 and p.guide_coulomb == 0.0
+    for v in (2e-4, 1e-3, 5e-3):
+        own = np.linalg.eigvals(own_matrix(p, v, 'stepper'))
+        ours = eigenvalues(operating_point(p, v, 'velocity'), p)
+        assert len(ours) == len(own)
+        for lam in own:            # the same equations: agreement to round-off
+            assert np.min(np.abs(ours - lam)) < 1e-6 * abs(lam)
+    # small-signal natural frequency sqrt(N_r T_h / J_total) when the load angle is small
+    # (frictionless, horizontal, undamped rotor: the load angle is ~0; the stiff contact
+    # moves the rigid-axis figure by far less than the 1 % allowed)
+    light = dataclasses.replace(p, inclination=0.0, guide_viscous=1.0, mu_s=0.0, mu_k=0.0,
+                                rotor_damping=0.0)
+    j_total = p.motor_inertia + p.screw_inertia + (p.nut_mass + p.payload_mass) * (
+        p.pitch / (2 * math.pi)) ** 2
+    f_n = math.sqrt(50 * p.holding_torque / j_total) / (2 * math.pi)
+    assert linear_stability(light, 1e-3, 'velocity')['frequency'] == pytest.approx(f_n, rel=0.01)
+    with pytest.raises(ValueError, match='holding_torque'):
+        linear_stability(dataclasses.replace(p, payload_mass=200.0), 1e-3, 'velocity')
+    with pytest.raises(ValueError, match='max_step_rate'):
+        linear_stability(p, 0.1, 'velocity')

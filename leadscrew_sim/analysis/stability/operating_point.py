@@ -216,7 +216,8 @@ def operating_point(params, speed, drive='velocity'):
     t_res = p.bearing_viscous * omega + (p.bearing_coulomb
                                          + p.collar_mu * p.collar_radius * abs(fa0)) * s
     torque = t_res - t_thread
-    if abs(torque) > p.max_torque:
+    stepping = p.drive_type == 'stepper' and drive == 'velocity'
+    if abs(torque) > p.max_torque and not stepping:      # a stepper: its holding torque
         raise ParameterError('max_torque', f'{p.max_torque!r} N m is below the {abs(torque):.4g}'
                              f' N m steady sliding at {v!r} m/s needs')
     rigid = p.coupling_stiffness == 0.0
@@ -227,7 +228,7 @@ def operating_point(params, speed, drive='velocity'):
     j_e = p.screw_inertia + (p.motor_inertia if rigid else 0.0) + rm * rt * sum(
         m * load_factor(mu0, tl, sg * s) for m, (sg, _) in zip(masses, nuts))
     stepper = None
-    if p.drive_type == 'stepper' and drive == 'velocity':
+    if stepping:
         w_ref, integral, stepper = omega, 0.0, _stepper_state(p, v, omega, torque)
     else:
         w_ref, integral = _drive_state(p, drive, v, omega, torque)
