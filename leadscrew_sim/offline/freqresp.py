@@ -83,8 +83,8 @@ def _recording(args):
         nut_joint=_get(args, 'nut_joint'), step_rate=_get(args, 'step_rate'))
     resp = recording_response(args.file, opts)
     linear = None
-    if _get(args, 'preset') or _get(args, 'params'):
-        params = _params(args)
+    params = _params(args) if _get(args, 'preset') or _get(args, 'params') else None
+    if params is not None and params.drive_type == 'servo':     # a stepper: no linear model
         f = np.geomspace(resp.frequency[resp.frequency > 0].min(), resp.frequency.max(),
                          OVERLAY_POINTS)
         linear = _linear(params, (resp.input, resp.output, None, None), f, args, 'step')
@@ -131,8 +131,9 @@ def freqresp_run(args):
                 amps, dt, _get(args, 'speed', 0.0), _get(args, 'mode'),
                 _get(args, 'settle', 3), _get(args, 'periods', 5), _get(args, 'workers'),
                 _get(args, 'scheduler'))
-            linear = _linear(params, names, frequencies(fmin, fmax, OVERLAY_POINTS), args,
-                             'step', measurement_step(params, dt, names[2]))
+            linear = (_linear(params, names, frequencies(fmin, fmax, OVERLAY_POINTS), args,
+                              'step', measurement_step(params, dt, names[2]))
+                      if params.drive_type == 'servo' else None)    # a stepper: none
     if _get(args, 'output_csv'):
         write_csv(args.output_csv, responses)
     if _get(args, 'plot'):

@@ -243,3 +243,16 @@ def test_summary_without_data_says_so(output, case):
     assert 'bandwidth: none in 1-100 Hz (too few points with a finite gain)' in text
     if loop:
         assert 'margins: none (too few points with a finite, nonzero L)' in text
+
+
+@pytest.mark.parametrize('argv', [['--linear'], ['--loop', 'velocity'],
+                                  ['--linear', '--input', 'position_command']])
+def test_stepper_axis_refused_where_the_servo_is_assumed(argv, capsys):
+    # the linear model and the loops are the servo drive's: a stepper axis gets one line
+    from leadscrew_sim.core.presets import preset_names
+    if 'nema23_tr12x3' not in preset_names():
+        pytest.skip('the stepper presets come with the stepper drive')
+    rc = main(['freqresp', '-q', '--workers', '1', '--preset', 'nema23_tr12x3'] + argv)
+    err = capsys.readouterr().err
+    assert rc != 0 and len(err.strip().splitlines()) == 1, err
+    assert 'drive_type' in err and 'stepper' in err and 'servo' in err

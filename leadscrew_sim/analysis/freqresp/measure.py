@@ -19,7 +19,7 @@ from .broadband import chirp_response, multisine_response
 from .linear import closed_loop, INPUTS, LOOPS, MODES, OUTPUTS, QUANTITIES, SAMPLINGS
 from .loops import loop_gain, loop_response
 from .parallel import run_points
-from .plant import thread_state
+from .plant import check_servo, thread_state
 from .response import FrequencyResponse
 from .sine import _loop_pair, grid_frequency
 
@@ -196,6 +196,8 @@ def simulated_response(params, input=None, output=None, loop=None, quantity=None
 
     """
     _one_of('method', method, METHODS)
+    if loop is not None:
+        check_servo(params, f'the {loop} loop')
     amps = [default_amplitude(params, input, loop)] if amplitudes is None else list(amplitudes)
     check_request(input, output, loop, quantity, fmin, fmax, points, amps, dt)
     mode = mode or 'position'

@@ -40,7 +40,7 @@ from ...core.params import ParameterError
 from ..stability.linearise import mechanics
 from ..stability.operating_point import _split_nut, operating_point
 
-__all__ = ['Plant', 'plant', 'REST_STATES', 'rest_load', 'thread_state']
+__all__ = ['check_servo', 'Plant', 'plant', 'REST_STATES', 'rest_load', 'thread_state']
 
 #: The thread at rest: stuck (stiction holds it), or free (friction left out).
 REST_STATES = ('stuck', 'free')
@@ -83,6 +83,15 @@ def rest_load(p):
     """Return W [N]: the axial force the thread supplies along +x at rest (-F_g - F_ext)."""
     f_g = -(p.nut_mass + p.payload_mass) * p.gravity * math.sin(p.inclination)
     return -f_g - p.external_force
+
+
+def check_servo(params, what='the linear model'):
+    """Refuse an axis whose motor is not the servo drive (``what`` names the refused figure)."""
+    drive = getattr(params, 'drive_type', 'servo')
+    if drive != 'servo':
+        raise ParameterError('drive_type', f'{drive!r}: {what} of the frequency response '
+                             "covers the servo drive ('servo') only; measure a stepper axis "
+                             'with a simulated sine dwell of an input -> output response')
 
 
 def thread_state(params, speed=0.0, rest='stuck'):
@@ -151,11 +160,13 @@ def plant(params, speed=0.0, rest='stuck'):
     Raises
     ------
     ParameterError
-        For a nut floating in the backlash at rest, or a sliding state that
-        does not exist (see the stability analysis).
+        For a stepper axis (the drive here is the servo's), a nut floating in
+        the backlash at rest, or a sliding state that does not exist (see the
+        stability analysis).
 
     """
     p = params
+    check_servo(p)
     state = thread_state(p, speed, rest)
     if state == 'sliding':
         op = dict(operating_point(p, speed, 'ideal'), drive='velocity')
