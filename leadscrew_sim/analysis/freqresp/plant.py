@@ -38,7 +38,7 @@ import numpy as np
 
 from ...core.params import ParameterError
 from ..stability.linearise import mechanics
-from ..stability.operating_point import _split_nut, operating_point
+from ..stability.operating_point import split_nut, operating_point
 
 __all__ = ['check_servo', 'Plant', 'plant', 'REST_STATES', 'rest_load', 'thread_state']
 
@@ -111,7 +111,7 @@ def _rest_op(p):
     """Return the operating point dict at rest (friction out), for stability's mechanics."""
     load = rest_load(p)
     if p.anti_backlash:
-        nuts, _ = _split_nut(p, load, 0.0, 0.0, 0.0)
+        nuts, _ = split_nut(p, load, 0.0, 0.0, 0.0)
     elif load == 0.0 and p.backlash > 0.0:
         raise ParameterError('backlash', f'{p.backlash!r} m with no axial load at rest: the nut '
                              'floats in the backlash (give a load, or backlash 0, or a speed)')

@@ -13,14 +13,14 @@ loop (or, without an integral, the proportional term of a raised reference).
 With an anti-backlash (split) nut both halves slide at v, each on the flank
 its own axial load picks: nut A carries W plus the preload spring's force
 F_s, half-nut B its weight less F_s, where F_s = F_p + k_p (b - (x_B - x_A))
-follows from the two contact deflections (:func:`_split_nut`).
+follows from the two contact deflections (:func:`split_nut`).
 """
 import math
 
 from ...core.friction_law import FrictionLaw
 from ...core.params import ParameterError
 
-__all__ = ['DRIVES', 'operating_point']
+__all__ = ['DRIVES', 'operating_point', 'split_nut']
 
 #: The drives of the analysis: the servo's velocity loop, or a prescribed motor angle.
 DRIVES = ('velocity', 'ideal')
@@ -83,7 +83,7 @@ def _flank(load, s, mu0, lam, v):
     return sigma, abs(load) / den
 
 
-def _split_nut(p, load, s, mu0, v):
+def split_nut(p, load, s, mu0, v):
     """
     Return (((sigma_A, |N_A|), (sigma_B, |N_B|)), F_s [N]) of a split nut sliding steadily.
 
@@ -204,7 +204,7 @@ def operating_point(params, speed, drive='velocity'):
     mu0 = law.mu(vs0)
     load = _axial_load(p, v, s)
     if p.anti_backlash:
-        nuts, spring = _split_nut(p, load, s, mu0, v)
+        nuts, spring = split_nut(p, load, s, mu0, v)
     else:
         if load == 0.0:
             raise ParameterError('speed', f'{v!r} m/s leaves the thread unloaded (no axial '
