@@ -152,8 +152,6 @@ def _fit(plan, rescan=False):
             break
         res = _refit(plan, res, why)
         fitted = dict(zip(res.names, res.values))
-    if problem.loop_noise:          # the drive loop's spread at the fitted values
-        problem.add_loop_noise(fitted)
     final = problem.replay(fitted)
     seen = motion_degeneracies(problem.compared(final))
     if set(seen) != set(why):       # the motion at the fit shows other events than at the start
