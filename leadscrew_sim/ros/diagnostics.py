@@ -6,7 +6,7 @@ from ..core import geometry
 
 NS = 1_000_000_000
 
-__all__ = ['diagnostic_array', 'stamp_msg']
+__all__ = ['diagnostic_array', 'LOST_STEPS_KEY', 'stamp_msg', 'stepper_values']
 
 
 def stamp_msg(stamp_ns):
@@ -57,7 +57,12 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
     rec_file, rec_bytes, rec_msgs, rec_err = recorder.status()
     eff = geometry.efficiency(p.mu_k * p.thread_factor, p.lead_angle)
     drive = m.drive_status()
-    level, msg = DiagnosticStatus.OK, f'running, drive enabled in {drive["mode_name"]} mode'
+    stepper = m.stepper_status()
+    kind = 'stepper' if stepper is not None else 'drive'
+    mode = drive['mode_name']
+    if stepper is not None and mode == 'torque':
+        mode = 'hold'                  # a stepper takes no torque: its state after reset
+    level, msg = DiagnosticStatus.OK, f'running, {kind} enabled in {mode} mode'
     if stale:
         level, msg = DiagnosticStatus.WARN, (
             'torque command stale: applying 0 N m' if drive['mode_name'] == 'torque' else
@@ -68,20 +73,59 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
     if rec_err:
         level, msg = DiagnosticStatus.WARN, f'recording: {rec_err}'
     if drive['fault']:
-        level, msg = DiagnosticStatus.ERROR, (f'drive fault: {drive["fault_name"]}; torque off '
-                                              'until ~/clear_fault')
+        level, msg = DiagnosticStatus.ERROR, (
+            f'drive fault: {drive["fault_name"]}; '
+            + ('stepper disabled, windings open' if stepper is not None else 'torque off')
+            + ' until ~/clear_fault')
     if m.fault:
         level, msg = DiagnosticStatus.ERROR, f'simulation fault: {m.fault}'
     values = _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age,
                      stale, loop, lateness, counts, recorder)
     values += [('active_faults', ', '.join(faults) or 'none'),
                ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1]))]
+    if stepper is not None:
+        values += stepper_values(stepper, p)
     status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
                               hardware_id=f'leadscrew_sim/{preset}',
                               values=[KeyValue(key=k, value=v) for k, v in values])
     arr = DiagnosticArray(status=[status])
     arr.header.stamp = stamp_msg(sim_time_ns)
     return arr
+
+
+#: The diagnostics key of the stepper's lost full steps, and what it says about them.
+LOST_STEPS_KEY = 'lost_full_steps_simulation_truth'
+LOST_STEPS_NOTE = ('simulation truth, unknown to a real stepper driver: the full steps the '
+                   'rotor lost against the commanded position (a multiple of 4); joint_states '
+                   'reports the commanded position unless the motor has an encoder')
+
+
+def stepper_values(stepper, p):
+    """
+    Return the (key, value) pairs of a stepper axis (``LeadScrewModel.stepper_status()``).
+
+    Parameters
+    ----------
+    stepper : dict
+        The stepper's status.
+    p : ScrewParams
+        The axis (its step angle and encoder).
+
+    """
+    return [
+        ('drive_type', 'stepper'),
+        ('stepper_state', 'enabled' if stepper['enabled'] else 'disabled (windings open)'),
+        ('step_position_rad', f'{stepper["step_position"]:.9g}'),
+        ('step_position_full_steps', f'{stepper["step_position"] / p.step_angle:.6f}'),
+        ('step_rate_full_steps_per_s', f'{stepper["step_rate"] / p.step_angle:.6g}'),
+        ('phase_current_a_A', f'{stepper["phase_current_a"]:.6g}'),
+        ('phase_current_b_A', f'{stepper["phase_current_b"]:.6g}'),
+        ('current_set_A', f'{stepper["current_set"]:.6g}'),
+        ('joint_states_source', 'motor encoder' if p.encoder_counts > 0 else
+         'commanded steps (no encoder)'),
+        (LOST_STEPS_KEY, str(stepper['lost_full_steps'])),
+        ('lost_full_steps_note', LOST_STEPS_NOTE),
+    ]
 
 
 def _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age, stale,

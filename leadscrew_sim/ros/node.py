@@ -114,6 +114,12 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             f'{"self-locking" if p.self_locking else "back-drivable"}; '
             f'{s.update_rate:g} Hz, {self.model.nsub} substeps/step, '
             f'clock_mode {self.mode}')
+        if self.model.is_stepper:
+            self.get_logger().info(
+                f'stepper drive: {p.holding_torque:g} N m at {p.run_current:g} A, '
+                f'{p.microsteps} microsteps, {p.supply_voltage:g} V; position and velocity '
+                'commands only (torque commands are refused); joint_states reports '
+                + ('the motor encoder' if p.encoder_counts > 0 else 'the commanded steps'))
         for note in p.advisories():
             self.get_logger().warn(note)
         if s.record:
@@ -360,6 +366,10 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         self._fault_seen = code
         if code:
             st = self.model.drive_status()
+            if self.model.is_stepper:
+                self.get_logger().error(f'drive fault: {FAULT_NAMES[code]}; stepper disabled, '
+                                        'windings open until ~/clear_fault')
+                return
             self.get_logger().error(
                 f'drive fault: {FAULT_NAMES[code]} (following error '
                 f'{st["following_error"]:.6g} rad); torque off until ~/clear_fault')

@@ -19,8 +19,8 @@ from ..core.fields import field_name, public_name
 from ..core.presets import preset_label
 from ..core.settings import RunSettings
 
-__all__ = ['DEFAULT_PRESET', 'declare_parameters', 'descriptor', 'integers_as_doubles',
-           'ParameterChange', 'StartupError', 'validate_changes']
+__all__ = ['check_drive_interface', 'DEFAULT_PRESET', 'declare_parameters', 'descriptor',
+           'integers_as_doubles', 'ParameterChange', 'StartupError', 'validate_changes']
 
 DEFAULT_PRESET = 'tr12x3'
 
@@ -95,6 +95,10 @@ def declare_parameters(node):
         settings = RunSettings.from_dict({k: overrides[k] for k in run if k in overrides})
     except ParameterError as exc:
         raise StartupError(str(exc)) from None
+    try:
+        check_drive_interface(params, settings)
+    except ParameterError as exc:
+        raise StartupError(str(exc)) from None
     for schema, values in ((physics, params), (run, settings)):
         for name, (_typ, _default, md) in schema.items():
             _declare(node, public_name(name), getattr(values, name), md, md['read_only'])
@@ -123,7 +127,21 @@ def validate_changes(parameters, params, settings):
     run = {p.name: p.value for p in parameters if p.name in run_names}
     new_params = ScrewParams.from_dict(physics, base=params) if physics else None
     new_settings = RunSettings.from_dict(run, base=settings) if run else None
+    check_drive_interface(new_params or params, new_settings or settings)
     return ParameterChange(physics, run, new_params, new_settings)
+
+
+def check_drive_interface(params, settings):
+    """
+    Raise ParameterError if the command interface asks a stepper for torque.
+
+    A stepper drive takes position and velocity commands only, so the fixed
+    ``joint_command_mode`` effort (a ros2_control effort interface) cannot drive it.
+    """
+    if params.drive_type == 'stepper' and settings.joint_command_mode == 'effort':
+        raise ParameterError('joint_command_mode', "'effort' with drive_type stepper: a "
+                             'stepper drive takes position and velocity commands only '
+                             "(allowed: auto, position, velocity)")
 
 
 #: Fields whose ROS parameter type is DOUBLE.

@@ -7,7 +7,8 @@ could round differently and the result would depend on which copy a process
 runs (compiled now, or loaded from the cache). Two processes share one new
 cache directory: the first compiles, the second loads; a third runs the
 kernel as plain Python (NUMBA_DISABLE_JIT), the reference of IEEE 754
-arithmetic operation by operation. All three must give the same SHA-256.
+arithmetic operation by operation. All three must give the same SHA-256, for
+the servo presets and for a stepper that loses steps.
 """
 import os
 import subprocess
@@ -30,6 +31,16 @@ for name in ('anti_backlash', 'stick_slip'):
         h.update(np.ascontiguousarray(res[key]).tobytes())
     m.advance(0.1)
     h.update(m.state.tobytes())
+# a stepper stepped beyond its pull-out at once: it loses steps (stepper.py's code paths)
+p = load_preset('nema17_tr8x8', payload_mass=8.0, max_step_rate=12000.0,
+                step_acceleration=1e6)
+m = LeadScrewModel(p, dt=1e-3)
+res = m.run(None, commands=np.tile([1.0, np.nan, p.hand_sign * 8000.0 * p.step_angle, np.nan],
+                                   (n // 3, 1)))
+assert res['lost_full_steps'][-1] != 0
+for key in sorted(res):
+    h.update(np.ascontiguousarray(res[key]).tobytes())
+h.update(m.state.tobytes())
 print(h.hexdigest())
 '''
 
