@@ -35,8 +35,9 @@ state slots S_IA .. S_SIDLE to and from local scalars once per step, and
 """
 import math
 
-from ._jit import DISPATCHERS, JIT_OPTIONS, kernel_jit, njit
+from ._jit import kernel_jit
 from ..drive_modes import MODE_POSITION, MODE_QUICKSTOP, MODE_VELOCITY
+from .stages import inline_jit
 from .layout import (
     O_DTCMD, O_DWREF, O_IA, O_IB, O_ISET, O_JQ, O_JV, O_JW, O_JX, O_SCMD, O_SRATE, P_BROT,
     P_DQ0, P_IHOLD, P_IRUN, P_KI, P_KM, P_LPH, P_NR, P_RPH, P_SACC, P_SFIT, P_SNOENC, P_SWMAX,
@@ -50,13 +51,16 @@ def stepper_constants(P, h):
     Return stc, the stepper's constants for substeps of h [s].
 
     stc = (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax,
-    acc, b_rot, h, tau_f, tau_s, e_fast, e_slow): rotor teeth [-]; microstep angle [rad];
+    acc, b_rot, h, tau_f, tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki,
+    inv_tau_f, inv_tau_s, c_us, s_us): rotor teeth [-]; microstep angle [rad];
     the motor angle of microstep 0 [rad]; K_m [N m/A]; run and hold current
     [A]; hold delay [s]; R [ohm]; K_i [V/A]; supply voltage [V]; detent torque
     [N m]; largest rate [rad/s] and acceleration [rad/s^2] of the step
     generator; rotor damping [N m s/rad]; the substep [s]; the current's time
     constants with the loop closed, L / (R + K_i), and with the voltage
-    clipped, L / R [s], and their decay factors over a substep.
+    clipped, L / R [s], and their decay factors over a substep; 1 / (R +
+    K_i) [A/V], K_i / (R + K_i) [-], 1 / R and 1 / K_i [A/V], 1 / tau_f and 1 /
+    tau_s [1/s]; cos and sin of a microstep's electrical angle.
     """
     r = P[P_RPH]
     ki = P[P_KI]
@@ -65,7 +69,9 @@ def stepper_constants(P, h):
     tau_s = ell / r
     return (P[P_NR], P[P_USTEP], P[P_DQ0], P[P_KM], P[P_IRUN], P[P_IHOLD], P[P_THOLD], r, ki,
             P[P_VSUP], P[P_TDET], P[P_SWMAX], P[P_SACC], P[P_BROT], h, tau_f, tau_s,
-            math.exp(-h / tau_f), math.exp(-h / tau_s))
+            math.exp(-h / tau_f), math.exp(-h / tau_s), 1.0 / (r + ki), ki / (r + ki), 1.0 / r,
+            1.0 / ki, 1.0 / tau_f, 1.0 / tau_s, math.cos(P[P_NR] * P[P_USTEP]),
+            math.sin(P[P_NR] * P[P_USTEP]))
 
 
 @kernel_jit
@@ -131,7 +137,7 @@ def step_generator(s_pos, s_rate, d_mode, d_qref, c_w, s_lo, s_hi, wmax, acc, h)
 
 
 @kernel_jit
-def _phase(i, i_set, emf, r, ki, v, h, tau_f, tau_s, e_fast, e_slow):
+def _phase_pieces(i, i_set, emf, stc):
     """
     Return a phase current [A] after a substep h [s] of the averaged chopper (i_set, emf held).
 
@@ -140,57 +146,79 @@ def _phase(i, i_set, emf, r, ki, v, h, tau_f, tau_s, e_fast, e_slow):
     tau_f = L / (R + K_i) while the voltage is in the linear zone, toward
     (+-v + emf) / R with tau_s = L / R while it is clipped; a substep that
     crosses the zone's edge is split at the crossing (at most three pieces).
-    e_fast, e_slow: exp(-h / tau_f), exp(-h / tau_s), the whole substep's decay.
+    stc: stepper_constants. :func:`_phase` takes the substeps that stay in one
+    zone without this.
     """
-    u = r * i_set + ki * (i_set - i)
-    # the common cases in one piece: the current's target lies in the zone it starts in
-    if -v <= u <= v:
-        target = i_set + emf / (r + ki)
-        u_t = r * i_set + ki * (i_set - target)
-        if -v <= u_t <= v:
-            return target + (i - target) * e_fast
-        zone = 0
-    else:
-        target = ((v if u > 0.0 else -v) + emf) / r
-        u_t = r * i_set + ki * (i_set - target)
-        if (u > 0.0 and u_t >= v) or (u < 0.0 and u_t <= -v):
-            return target + (i - target) * e_slow
-        zone = 1 if u > 0.0 else -1
-    i_pv = i_set + (r * i_set - v) / ki     # u = +v here; below it the voltage clips at +v
-    i_nv = i_set + (r * i_set + v) / ki     # u = -v here; above it at -v
+    r, ki, v, h = stc[7], stc[8], stc[9], stc[14]
+    inv_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s = stc[19], stc[21], stc[22], stc[23], stc[24]
+    ri = r * i_set
+    u = ri + ki * (i_set - i)
+    zone = 0 if -v <= u <= v else (1 if u > 0.0 else -1)
+    i_pv = i_set + (ri - v) * inv_ki     # u = +v here; below it the voltage clips at +v
+    i_nv = i_set + (ri + v) * inv_ki     # u = -v here; above it at -v
     left = h
     for _ in range(3):
         if zone == 0:
-            target = i_set + emf / (r + ki)
-            tau = tau_f
-            decay = e_fast
+            target = i_set + emf * inv_rk
+            rate = inv_tau_f
+            decay = stc[17]
             edge = i_pv if target < i_pv else (i_nv if target > i_nv else target)
             nxt = 1 if target < i_pv else -1
         elif zone == 1:
-            target = (v + emf) / r
-            tau = tau_s
-            decay = e_slow
+            target = (v + emf) * inv_r
+            rate = inv_tau_s
+            decay = stc[18]
             edge = i_pv if target > i_pv else target
             nxt = 0
         else:
-            target = (-v + emf) / r
-            tau = tau_s
-            decay = e_slow
+            target = (emf - v) * inv_r
+            rate = inv_tau_s
+            decay = stc[18]
             edge = i_nv if target < i_nv else target
             nxt = 0
         if edge == target or (edge - target) * (i - target) <= 0.0:
             crossing = left + 1.0     # the target lies in the zone: no crossing
         else:
             ratio = (i - target) / (edge - target)
-            crossing = tau * math.log(ratio) if ratio > 1.0 else 0.0
+            crossing = math.log(ratio) / rate if ratio > 1.0 else 0.0
         if crossing >= left:
             if left == h:
                 return target + (i - target) * decay
-            return target + (i - target) * math.exp(-left / tau)
+            return target + (i - target) * math.exp(-left * rate)
         i = edge
         left -= crossing
         zone = nxt
     return i
+
+
+@inline_jit
+def _phase(i, i_set, emf, stc):
+    """
+    Return a phase current [A] after a substep of the averaged chopper: :func:`_phase_pieces`.
+
+    Inlined: the common substep, whose current stays in the zone it starts in
+    (its target lies there), is one exponential decay; only a substep that
+    crosses the edge of the linear zone calls :func:`_phase_pieces`. stc:
+    stepper_constants.
+    """
+    r = stc[7]
+    ki = stc[8]
+    v = stc[9]
+    ri = r * i_set
+    u = ri + ki * (i_set - i)
+    if -v <= u <= v:
+        if -v <= ri - stc[20] * emf <= v:        # the voltage at the target
+            target = i_set + emf * stc[19]
+            return target + (i - target) * stc[17]
+    elif u > 0.0:
+        target = (v + emf) * stc[21]
+        if ri + ki * (i_set - target) >= v:
+            return target + (i - target) * stc[18]
+    else:
+        target = (emf - v) * stc[21]
+        if ri + ki * (i_set - target) <= -v:
+            return target + (i - target) * stc[18]
+    return _phase_pieces(i, i_set, emf, stc)
 
 
 @kernel_jit
@@ -203,13 +231,6 @@ def _open(i, emf, r, v, e_slow):
     return 0.0 if i_new * i <= 0.0 else i_new
 
 
-def inline_jit(fn):
-    """Compile ``fn`` like kernel_jit, inlined into its compiled callers (numba IR)."""
-    dispatcher = njit(inline='always', **JIT_OPTIONS)(fn)
-    DISPATCHERS.append(dispatcher)
-    return dispatcher
-
-
 @inline_jit
 def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs,
                     c_w, s_lo, s_hi, enabled, t_scale, stc):
@@ -219,7 +240,9 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
     qm [rad], wm [rad/s]: rotor angle and rate at the substep's start; ia, ib
     [A]: phase currents; s_pos [rad], s_rate [rad/s], s_k, s_idle [s]: step
     generator position and rate, microstep index, standstill time; ca, sa:
-    cos and sin of the commanded electrical angle (of s_k); d_mode, d_qref
+    cos and sin of the commanded electrical angle (of s_k: a single microstep
+    rotates them by a microstep's angle, the kernel recomputes them exactly at
+    each step's start, :func:`command_direction`); d_mode, d_qref
     [rad], d_qs: mode, position target and quick stop state (load_drive);
     c_w [rad/s]: velocity command; s_lo, s_hi [rad/s]: rate bounds
     (step_generator); enabled: no fault latched (else the bridge is off and
@@ -233,7 +256,8 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
     current amplitude set (0 disabled).
     """
     (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax, acc, b_rot, h, tau_f,
-     tau_s, e_fast, e_slow) = stc
+     tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s, c_us,
+     s_us) = stc
     s_mid = s_pos
     if enabled:
         s_pos, s_rate, stopped = step_generator(s_pos, s_rate, d_mode, d_qref, c_w, s_lo,
@@ -249,11 +273,14 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
     # the microstep and the rotor's electrical angle at the substep's middle
     k = float(math.floor((s_mid - q0) / ustep + 0.5))
     if k != s_k:
-        s_k = k
         s_idle = 0.0
-        th = nr * (k * ustep)
-        ca = math.cos(th)
-        sa = math.sin(th)
+        if k == s_k + 1.0:      # one microstep: rotate the direction (exact again each step)
+            ca, sa = ca * c_us - sa * s_us, sa * c_us + ca * s_us
+        elif k == s_k - 1.0:
+            ca, sa = ca * c_us + sa * s_us, sa * c_us - ca * s_us
+        else:
+            ca, sa = command_direction(k, stc)
+        s_k = k
     else:
         s_idle += h
     th_e = nr * (qm + 0.5 * h * wm - q0)
@@ -263,8 +290,8 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
     emf_b = -km * wm * c
     if enabled:
         i_amp = i_hold if s_idle >= t_hold else i_run
-        ia = _phase(ia, i_amp * ca, emf_a, r, ki, v, h, tau_f, tau_s, e_fast, e_slow)
-        ib = _phase(ib, i_amp * sa, emf_b, r, ki, v, h, tau_f, tau_s, e_fast, e_slow)
+        ia = _phase(ia, i_amp * ca, emf_a, stc)
+        ib = _phase(ib, i_amp * sa, emf_b, stc)
     else:
         i_amp = 0.0
         ia = _open(ia, emf_a, r, v, e_slow)
