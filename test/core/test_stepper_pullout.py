@@ -18,7 +18,10 @@ It knows nothing of the kernel's substeps, step generator or mechanics.
 The simulated pull-out: the motor runs the axis at the rate, then a load
 torque rises slowly until the rotor slips a cycle.
 """
+import csv
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -208,3 +211,26 @@ def test_a_held_position_is_kept_under_load():
         forces = -share * p.holding_torque / p.lead_ratio * np.minimum(np.arange(n) / 400, 1)
         r = run_commands(m, position_rows(n, th0), forces)
         assert bool(r['lost_full_steps'].any()) == slips
+
+
+def test_pullout_verb_writes_the_table_and_the_figure(tmp_path):
+    """``leadscrew_sim pullout``: CSV and PNG; refused for a servo axis and for a bad rate."""
+    csv_path, png = tmp_path / 'po.csv', tmp_path / 'po.png'
+    base = [sys.executable, '-m', 'leadscrew_sim.cli', 'pullout']
+    res = subprocess.run(base + ['--preset', 'nema17_tr8x8', '--set', 'max_step_rate=4000',
+                                 '--rates', '400,2800', '-o', str(csv_path), '--plot', str(png)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    rows = list(csv.DictReader(open(csv_path)))
+    assert [float(r['step_rate']) for r in rows] == [400.0, 2800.0]
+    assert png.stat().st_size > 1000 and png.read_bytes()[:4] == b'\x89PNG'
+    p = load_preset('nema17_tr8x8')      # the phasor model needs the motor and the viscous terms
+    for r in rows:
+        oracle = pullout_torque(p, float(r['step_rate']) * p.step_angle)
+        assert float(r['pullout_torque']) == pytest.approx(oracle, rel=0.05)
+    for args, words in ((['--preset', 'tr12x3'], 'stepper'),
+                        (['--preset', 'nema17_tr8x8', '--rates', '5000'], 'max_step_rate'),
+                        (['--preset', 'nema17_tr8x8', '--rates', 'x'], '--rates')):
+        res = subprocess.run(base + args, capture_output=True, text=True, timeout=300)
+        lines = res.stderr.strip().splitlines()
+        assert res.returncode == 1 and len(lines) == 1 and words in lines[0], res.stderr
