@@ -188,6 +188,9 @@ def main():
     n = int(args.seconds / 1e-3)
     for name in preset_names():
         p = load_preset(name)
+        if p.drive_type == 'stepper':   # no torque input: bench/bench_stepper.py measures it
+            print(f'{name:<15}(a stepper: see bench/bench_stepper.py)')
+            continue
         figures = {}
         for drive, torques in (('hold', np.zeros(n)), ('track', track_torques(p, args.seconds)),
                                ('servo', None)):
