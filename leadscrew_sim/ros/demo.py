@@ -8,8 +8,10 @@ commanded torque, the nut position [mm] and the thread contact state.
 Between pulses it commands the torque in the middle of the holding band, so
 a self-locking screw stands still; each pulse exceeds the raising or
 lowering threshold by 15 % for 0.1 s and the nut steps by a few mm toward a
-target of +20 mm or -20 mm, then turns around. Ctrl-C (or --duration)
-stops the demo and the node.
+target of +20 mm or -20 mm, then turns around. A stepper axis (``drive_type``
+stepper, e.g. ``--preset nema17_tr8x8``) takes no torque: the demo sends it
+``position_command`` targets STEP_MM further every pulse period instead.
+Ctrl-C (or --duration) stops the demo and the node.
 """
 import argparse
 import math
@@ -25,6 +27,7 @@ PULSE_LENGTH = 0.1          # s
 PULSE_GAIN = 1.15           # pulse torque beyond the threshold, relative
 TARGET = 0.02               # m, turn-around points +-TARGET
 PRINT_PERIOD = 0.5          # s
+STEP_MM = 2.0               # mm, the stepper's move per pulse period
 
 
 def torque_band(params):
@@ -61,6 +64,20 @@ def pulse_torque(t, x, state, hold, half, hand_sign):
         return state['last']
     state['pulsing'] = False
     return hold
+
+
+def step_target(t, state):
+    """Return the stepper's position target [m] at time t [s]; state holds the pattern."""
+    k = int(t // PULSE_PERIOD)
+    if k != state.get('k'):
+        state['k'] = k
+        x = state.get('x_cmd', 0.0)
+        if (state['target'] - x) * state['target'] <= 0.0:
+            state['target'] = -state['target']
+        step = STEP_MM * 1e-3 * (1.0 if state['target'] > x else -1.0)
+        state['x_cmd'] = x + step
+        state['last'] = state['x_cmd']
+    return state['x_cmd']
 
 
 def _parse(argv):
@@ -123,16 +140,20 @@ def _drive(args, params, hold, half, pub, executor, latest, child, stop):
         t = time.monotonic() - t0
         if args.duration and t >= args.duration:
             break
-        torque = pulse_torque(t, latest['x'], state, hold, half, params.hand_sign)
-        pub.publish(Float64(data=torque))
+        if params.drive_type == 'stepper':
+            state.setdefault('x_cmd', latest['x'])
+            value = step_target(t, state)
+            what = f'target={value * 1e3:+8.3f} mm'
+        else:
+            value = pulse_torque(t, latest['x'], state, hold, half, params.hand_sign)
+            what = f'torque={value:+8.4f} N m (last pulse {state.get("last", hold):+8.4f})'
+        pub.publish(Float64(data=value))
         executor.spin_once(timeout_sec=0.01)
         if t >= next_print:
             next_print += PRINT_PERIOD
             x = latest['x']
-            print(f't={t:7.2f} s  torque={torque:+8.4f} N m '
-                  f'(last pulse {state.get("last", hold):+8.4f})  '
-                  f'nut={x * 1e3:+9.3f} mm  contact={latest["contact"]} '
-                  f'({latest.get("thread", "?")})', flush=True)
+            print(f't={t:7.2f} s  {what}  nut={x * 1e3:+9.3f} mm  '
+                  f'contact={latest["contact"]} ({latest.get("thread", "?")})', flush=True)
         if child.poll() is not None:
             print(f'demo: the node exited with code {child.returncode}', file=sys.stderr)
             return child.returncode or 1
@@ -152,10 +173,16 @@ def main(argv=None):
     from std_msgs.msg import Float64
 
     hold, half = torque_band(params)
-    print(f'demo: preset {preset} ({params.hand}-hand thread: a positive torque moves the '
-          f'nut toward {"-x" if params.hand == "right" else "+x"}); holding torque '
-          f'{hold:+.3f} N m, pulses of +-{PULSE_GAIN * half:.3f} N m; '
-          f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
+    stepper = params.drive_type == 'stepper'
+    if stepper:
+        print(f'demo: preset {preset} (a stepper): position targets {STEP_MM:g} mm apart '
+              f'every {PULSE_PERIOD:g} s between +-{TARGET * 1e3:g} mm; '
+              f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
+    else:
+        print(f'demo: preset {preset} ({params.hand}-hand thread: a positive torque moves the '
+              f'nut toward {"-x" if params.hand == "right" else "+x"}); holding torque '
+              f'{hold:+.3f} N m, pulses of +-{PULSE_GAIN * half:.3f} N m; '
+              f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}', flush=True)
     child = subprocess.Popen(
         [sys.executable, '-m', 'leadscrew_sim.node', '--ros-args', '-p', f'preset:={preset}'],
         start_new_session=True)
@@ -163,7 +190,8 @@ def main(argv=None):
     node = rclpy.create_node('leadscrew_sim_demo')
     latest = {'x': None, 'contact': '?'}
     _subscribe(node, latest)
-    pub = node.create_publisher(Float64, 'torque_command', 10)
+    pub = node.create_publisher(Float64, 'position_command' if stepper else 'torque_command',
+                                10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     stop = {'now': False}
