@@ -13,7 +13,9 @@ The motor is driven in torque mode (:meth:`LeadScrewModel.advance`, :meth:`~Lead
 with torques) or through the servo drive (:mod:`.engine.drive`): :meth:`~LeadScrewModel.command`
 sets a held command (torque, velocity, position, quick stop) that
 :meth:`~LeadScrewModel.advance_held` follows, or :meth:`~LeadScrewModel.run` takes one
-command per step.
+command per step. With ``drive_type`` stepper the motor is a stepper behind its driver
+(:mod:`.engine.stepper`): it takes position and velocity commands, refuses torques, and
+:meth:`~LeadScrewModel.stepper_status` reports it.
 """
 import math
 

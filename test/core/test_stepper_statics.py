@@ -165,3 +165,17 @@ def test_velocity_command_ramps_at_the_step_acceleration():
     assert r['lost_full_steps'].max() == 0
     with pytest.raises(ValueError, match='torque'):
         m.command('torque', effort=0.1)
+
+
+@pytest.mark.parametrize('preset', ['nema17_tr8x8', 'nema23_tr12x3'])
+def test_energy_balance_of_a_stepper_move(preset):
+    """The motor's work (its torque with detent and damping) balances the energy terms."""
+    from leadscrew_sim import LeadScrewModel, load_preset
+    p = load_preset(preset)
+    m = LeadScrewModel(p)
+    th0 = m.output().motor_angle
+    run_commands(m, position_rows(2000, th0 + p.hand_sign * 6.0 * math.pi))   # 3 turns up
+    e = m.energy()
+    flow = abs(e['input_work']) + abs(e['potential']) + e['friction_dissipation']
+    assert e['potential'] > 0.0
+    assert abs(e['residual']) < 1e-3 * flow, e
