@@ -123,7 +123,7 @@ SENSORS = ('--set', 'encoder_counts=65536', '--set', 'encoder_noise=5e-5',
 #:   the preset's friction.
 DEGENERATE = {
     'one_way': ('tr12x3', ('--velocity', 0.002, '--set', 'mu_k=0.12'),
-                'mu_k,backlash', {'backlash': 'never reverses'}),
+                'mu_k,backlash', {'backlash': 'load never reverses'}),
     'inside_band': ('stick_slip', ('--torque-csv', 'band.csv', '--set', 'mu_s=0.35'),
                     'mu_s,mu_k', {'mu_s': 'never breaks away', 'mu_k': 'never slid'}),
     'one_speed': ('tr12x3', ('--velocity', 0.005),

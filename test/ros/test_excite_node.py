@@ -98,7 +98,9 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     assert sent[-1][1] >= prof.duration - 0.01 and len(sent) >= 0.95 * prof.duration * 100
     cmds = rec['/position_command']
     assert [d.data for _lt, d in cmds] == [v for _k, _t, v in sent]
-    assert all(b > a for (a, _), (b, _) in zip(cmds, cmds[1:]))
+    # (two commands the node takes in one tick, after a stall of its loop on a
+    # loaded host, share that tick's log time: the order is what must hold)
+    assert all(b >= a for (a, _), (b, _) in zip(cmds, cmds[1:]))
 
     # The nut followed: at the end of each dwell (a run of one target for at
     # least 0.4 s) the last joint_states of the run is within tolerance of it.
@@ -214,8 +216,10 @@ def test_the_node_recording_of_an_excite_run_identifies(run_exe, tmp_path):
     # The axis: tr12x3 with thread friction the preset does not have, a 17-bit
     # encoder and a 1 um scale; stepped at real time so the file re-simulates
     # exactly. identify starts from the preset (mu_s 0.2, mu_k 0.15: 11 % and 25 %
-    # off) and must land within the tolerances: mu_k 1 %, mu_s 2 %, the
-    # backlash (0.1 mm, as the preset) 2 %.
+    # off) and must land within the tolerances: mu_k 1 %, mu_s 2 %. The backlash
+    # cannot be seen: the 10 kg load keeps the nut on one flank through every
+    # reversal (the moves accelerate far below g), so it is reported not
+    # identifiable, for that reason, and left out of the parameter file.
     truth = dict(mu_s=0.18, mu_k=0.12, backlash=1e-4)
     node = start_recording_node(run_exe, tmp_path, 'preset:=tr12x3', 'clock_mode:=stepped',
                                 'real_time_factor:=1.0', 'command_timeout:=2.0',
@@ -235,6 +239,8 @@ def test_the_node_recording_of_an_excite_run_identifies(run_exe, tmp_path):
     for line in report.splitlines():
         if line.split() and line.split()[0] in truth:
             rows.setdefault(line.split()[0], line)
-    for name, tol in (('mu_s', 0.02), ('mu_k', 0.01), ('backlash', 0.02)):
-        assert rows[name].rstrip().endswith('identified'), report
+    for name, tol in (('mu_s', 0.02), ('mu_k', 0.01)):
+        assert rows[name].rstrip().endswith(' identified'), report
         assert abs(fitted[name] - truth[name]) <= tol * truth[name], (name, fitted[name], report)
+    assert rows['backlash'].rstrip().endswith('not identifiable'), report
+    assert 'never changed flank' in report and 'backlash' not in fitted, report

@@ -44,8 +44,8 @@ def motion_degeneracies(cols):
     out = {}
     contact = np.asarray(cols['contact'])
     if len(np.unique(contact[contact != 0])) < 2:
-        out['backlash'] = ('the motion never reverses: the thread contact never changed '
-                           'flank (no load reversal)')
+        out['backlash'] = ('the load never reverses: the thread contact never changed '
+                           'flank')
     stick = np.asarray(cols['stick_a'])
     if not np.count_nonzero((stick[:-1] == 1) & (stick[1:] == 0)):
         out['mu_s'] = 'the motion never breaks away from standstill'

@@ -146,8 +146,8 @@ def _stepper_state(p, v, omega, torque):
              + p.torque_constant * abs(omega))
     if volts > p.supply_voltage:
         raise ParameterError('speed', f'{v!r} m/s needs {volts:.4g} V per phase to keep the run '
-                              f'current, above supply_voltage {p.supply_voltage!r} V (the '
-                              'stepper\'s torque falls there; the linear model does not hold)')
+                             f'current, above supply_voltage {p.supply_voltage!r} V (the '
+                             'stepper\'s torque falls there; the linear model does not hold)')
     phi = math.asin(need / t_h) / nr
     return nr * t_h * math.cos(nr * phi), p.rotor_damping, phi
 
