@@ -50,6 +50,12 @@ def _summary(res, out):
         where = ', '.join(_fmt(v) for v in vals[:8]) if vals else 'none in the range'
         more = f' (+{len(vals) - 8} more)' if len(vals) > 8 else ''
         print(f'linear boundary along {name}: {where}{more}', file=out)
+    for name, spans in res.get('bistable', {}).items():
+        if spans:
+            where = ', '.join(f'{_fmt(a)} .. {_fmt(b)}' for a, b in spans[:8])
+            more = f' (+{len(spans) - 8} more)' if len(spans) > 8 else ''
+            print(f'bistable along {name} (the small start decays, the large one keeps '
+                  f'oscillating): {where}{more}', file=out)
     w = res['worst']
     if w is None:
         print('worst case: none (every case failed)', file=out)

@@ -73,6 +73,40 @@ def boundaries(axes, rows):
     return out
 
 
+def bistable_ranges(axes, rows):
+    """
+    Return, per axis name, the (first, last) values of each run of bistable cases along it.
+
+    Along an axis, with the other axes fixed, consecutive cases whose nonlinear
+    verdict is ``bistable`` form one range (a case on its own: first = last).
+    The range's ends are the grid's values: the true ends lie between them and
+    their neighbours.
+
+    Parameters
+    ----------
+    axes : list of (str, list)
+        The parsed axes.
+    rows : list of dict
+        The rows in case order.
+
+    """
+    sizes = [len(a[1]) for a in axes]
+    out = {}
+    for k, (name, _values) in enumerate(axes):
+        stride = math.prod(sizes[k + 1:])
+        found = []
+        for i, r in enumerate(rows):
+            first = (i // stride) % sizes[k] == 0
+            if r['verdict'] == 'bistable' and (first or rows[i - stride]['verdict'] != 'bistable'):
+                j = i
+                while ((j // stride) % sizes[k] < sizes[k] - 1
+                       and rows[j + stride]['verdict'] == 'bistable'):
+                    j += stride
+                found.append((r[name], rows[j][name]))
+        out[name] = found
+    return out
+
+
 def _worst(rows):
     ok = [r for r in rows if not r['error']]
     if not ok:
@@ -115,7 +149,9 @@ def stability_table(base, grid=(), speed=None, drive='velocity', method='both', 
     Returns
     -------
     dict
-        names (swept), rows, complete (bool), boundaries (name -> values), worst (row or None).
+        names (swept), rows, complete (bool), boundaries (name -> values where the
+        linear growth rate changes sign), bistable (name -> (first, last) values of
+        each run of bistable cases), worst (row or None).
 
     """
     if drive not in DRIVES:
@@ -144,4 +180,5 @@ def stability_table(base, grid=(), speed=None, drive='velocity', method='both', 
         from .plot import plot_map
         plot_map(plot_path, axes, rows, method)
     return dict(names=names, rows=rows, complete=complete,
-                boundaries=boundaries(axes, rows), worst=_worst(rows))
+                boundaries=boundaries(axes, rows), bistable=bistable_ranges(axes, rows),
+                worst=_worst(rows))
