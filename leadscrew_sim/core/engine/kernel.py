@@ -16,7 +16,9 @@ velocity at zero to round-off, so a self-locking screw does not creep
 The servo drive (drive.py, physics.md section 10) runs inside the substep
 loop: in velocity, position and quick stop mode it updates the held motor
 torque command every m substeps; in torque mode it does not run and the
-step takes the torque path of the kernel without a drive.
+step takes the torque path of the kernel without a drive. A stepper
+(stepper.py, physics.md section 14; P_STEPPER) replaces both: its stage
+runs in every substep and gives the motor torque from its phase currents.
 
 This module holds the integrator _steps and its entry points step,
 step_held and run_series, plus workspace(). _steps keeps the state in local
@@ -87,7 +89,11 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     drive period, when d_phase wraps to 0: the drive's feedback is that sample.
     The motor delivers t_scale times the torque command (a weakened motor), an
     injected fault latches while its flag is set, and a jam is a one-sided end
-    stop at jam_x on the side nut A was when it engaged.
+    stop at jam_x on the side nut A was when it engaged. A stepper (stepper):
+    the servo drive never runs; in every substep stepper.stepper_substep
+    advances the step generator and the phase currents and gives the motor
+    torque (no lag), a latched fault opening the windings; its state slots are
+    loaded once per step (load_stepper) and stored at its end.
 
     Parameters are unpacked once per call into the constant tuples of the
     stages (bc, lc, dc, sc); the state lives in local scalars within a step
@@ -106,6 +112,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         state, S_EQ .. S_VS get the truth);  eq0 .. nr0: the sensor slots at
         the step's start;  sw_min, sw_max, home: switches;  jam_side: 1 blocks
         +x, -1 blocks -x, 0 no jam
+      stepper, stc: the motor is a stepper, its constants (stepper.stepper_constants);
+        ia, ib [A], s_pos [rad], s_rate [rad/s], s_k, s_idle [s], ca, sa, i_amp [A]:
+        its phase currents, step generator, microstep, standstill time, set point
+        direction and current amplitude;  s_lo, s_hi: its rate bounds [rad/s]
       ct: the substep's contact forces (stages.smooth_forces); flo_a, fup_a,
         flo_b, fup_b: its flank forces [N];  imp_*, mode_*: friction impulses
         and stick/slip modes (stages.friction_impulses);  faprev: axial thread
