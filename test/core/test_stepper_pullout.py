@@ -15,7 +15,8 @@ i), -V, V) - R i + e(t), found here by shooting with scipy's solve_ivp. The
 pull-out torque is max over delta of T(delta) less the viscous torques at w.
 It knows nothing of the kernel's substeps, step generator or mechanics.
 
-The simulated pull-out: the motor runs the axis at the rate, then a load
+The simulated pull-out (``leadscrew_sim.offline.pullout``, what the
+``pullout`` verb tables): the motor runs the axis at the rate, then a load
 torque rises slowly until the rotor slips a cycle.
 """
 import csv
@@ -29,6 +30,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
 from leadscrew_sim import load_preset
+from leadscrew_sim.offline.pullout import pullout_torque as measured_pullout
 from stepper_axes import new_model, position_rows, rigid_axis, run_commands, velocity_rows
 
 
@@ -97,21 +99,6 @@ def test_phasor_model_without_the_limit_is_the_linear_phasor():
             p.holding_torque * math.sin(delta), rel=1e-6)
 
 
-def measure_pullout(p, rate, t_ramp=2.0):
-    """Return the load torque [N m] at which the rotor slips at ``rate`` full steps/s (or None)."""
-    m, th0 = new_model(p)
-    rt = p.lead_ratio
-    w = rate * p.step_angle
-    n0 = int(round((w / (p.step_acceleration * p.step_angle) + 0.3) / 1e-3))
-    n1 = int(round(t_ramp / 1e-3))
-    forces = np.zeros(n0 + n1)
-    forces[n0:] = -np.linspace(0.0, 1.2 * p.holding_torque / rt, n1)
-    r = run_commands(m, velocity_rows(n0 + n1, w), forces)
-    slips = np.flatnonzero(r['lost_full_steps'] != 0)
-    assert len(slips) == 0 or slips[0] > n0          # no slip before the load
-    return None if len(slips) == 0 else -forces[slips[0]] * rt
-
-
 def pullout_axis():
     """Return the nema17 motor on the ideal load, stepping up to 5000 full steps/s."""
     return rigid_axis(payload_mass=5.0, detent_torque=0.0, step_acceleration=20000.0,
@@ -127,7 +114,7 @@ def test_pullout_torque_against_the_phasor_model():
     for rate in (400.0, 1200.0, 2000.0, 2800.0, 3500.0):
         w = rate * p.step_angle
         oracle = pullout_torque(p, w)
-        sim = measure_pullout(p, rate)
+        sim = measured_pullout(p, rate)
         rows.append((rate, oracle, sim))
         print(f'{rate:6.0f} full steps/s: pull-out {sim:.4f} N m simulated, {oracle:.4f} N m '
               f'phasor model ({sim / oracle - 1:+.1%})')
