@@ -31,7 +31,9 @@ mu_s 0.17) fitted for mu_s, mu_k and the Stribeck velocity: wall time, re-simula
 errors. Part 6 (``--quantised tr12x3,stick_slip``): the ``sweep`` and ``breakaway``
 profiles of each preset with the test's friction truth (x1.25, x0.8, x1.3), a 16-bit
 encoder with half a count of noise and a 1 um scale with 0.5 um of noise, fitted for
-mu_s, mu_k and the Stribeck velocity; ``--case-seeds`` sensor seeds (7, 11, ..).
+mu_s, mu_k and the Stribeck velocity; ``--case-seeds`` sensor seeds (7, 11, ..);
+``--quantised-profiles sweep`` fits only the sweep. Each line ends with the 95 %
+half-widths [% of the value].
 """
 import argparse
 import importlib
@@ -228,12 +230,12 @@ QUANTISED = dict(encoder_counts=2 ** 16, encoder_noise=0.5 * 2 * np.pi / 2 ** 16
                  scale_resolution=1e-6, scale_noise=5e-7)
 
 
-def quantised(presets, seeds=1):
+def quantised(presets, seeds=1, names=('sweep', 'breakaway')):
     """Print the fits of mu_s, mu_k, stribeck_velocity of sweep and breakaway, 16-bit encoder."""
     fit = 'mu_s,mu_k,stribeck_velocity'
     for preset in presets:
         p0 = T.load_preset(preset)
-        for name in ('sweep', 'breakaway'):
+        for name in names:
             for seed in range(seeds):
                 values = {n: getattr(p0, n) * T.TRUTH[n] for n in fit.split(',')}
                 values.update(QUANTISED, sensor_seed=7 + 4 * seed)
@@ -250,7 +252,9 @@ def quantised(presets, seeds=1):
                     wall = time.perf_counter() - t0
                 print(f'{preset:>10} {name:>9} seed {7 + 4 * seed}: {out["problem"].slow} '
                       f'steps left out, {wall:.1f} s wall; '
-                      f'{_errors(out["res"], true, digits=3)}', flush=True)
+                      f'{_errors(out["res"], true, digits=3)}; 95 % half-widths '
+                      f'{", ".join(f"{100 * vd.rel:.3g} %" for vd in out["res"].verdicts)}',
+                      flush=True)
 
 
 def main():
@@ -270,6 +274,8 @@ def main():
     ap.add_argument('--clean-sweep', action='store_true', help='fit the clean sweep')
     ap.add_argument('--quantised', default='', help='comma list of presets whose sweep and '
                     'breakaway profiles are fitted with a 16-bit encoder')
+    ap.add_argument('--quantised-profiles', default='sweep,breakaway',
+                    help='the profiles of --quantised')
     a = ap.parse_args()
     if a.seconds:
         speed(a.seconds, a.fit, [m for m in a.modes.split(',') if m])
@@ -282,7 +288,8 @@ def main():
     if a.clean_sweep:
         clean_sweep()
     if a.quantised:
-        quantised([n for n in a.quantised.split(',') if n], a.case_seeds)
+        quantised([n for n in a.quantised.split(',') if n], a.case_seeds,
+                  [n for n in a.quantised_profiles.split(',') if n])
     return 0
 
 
