@@ -1,5 +1,5 @@
 """
-The servo drive's mode and fault codes, with their names (physics.md section 10).
+The servo drive's mode and fault codes, with their names (doc/model.md section 16).
 
 The codes are what a command row's mode field, the drive's state and its
 outputs hold; the compiled drive (:mod:`.engine.drive`) and the kernel read

@@ -1,5 +1,5 @@
 """
-Thread geometry and quasi-static closed forms (physics.md sections 1-2).
+Thread geometry and quasi-static closed forms (doc/model.md sections 2 and 7).
 
 All lengths in m, angles in rad, torques in N m, forces in N.
 """

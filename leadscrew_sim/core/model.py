@@ -1,7 +1,7 @@
 """
 LeadScrewModel: parameters + state + the fixed-step kernel (ROS-free).
 
-Sign convention (physics.md section 3): theta follows the right-hand rule
+Sign convention (doc/model.md section 3): theta follows the right-hand rule
 about +x; the motor torque and screw angle are reported in that sense. A
 positive torque moves the nut toward -x for a right-hand thread and toward +x
 for a left-hand one. The parameter vector and the substep come from

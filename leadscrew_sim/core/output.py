@@ -11,7 +11,7 @@ a :func:`record_row` as plain floats; :func:`nut_forces` splits the axial
 thread force between the nut bodies. :func:`stored_energy` is the kinetic,
 potential and spring energy of a state, for the energy balance that
 :func:`energy_balance` draws up.
-Angles and torques are reported in the theta sense (physics.md section 3).
+Angles and torques are reported in the theta sense (doc/model.md section 3).
 """
 import dataclasses
 import operator
@@ -91,7 +91,7 @@ REPORTED = {
 DRIVE_VALUES = ('mode', 'fault', 'limit_min', 'limit_max', 'home', 'following_error',
                 'drive_torque', 'velocity_reference')
 
-#: The stepper's values (physics.md section 14): in the arrays of a stepper's runs only.
+#: The stepper's values (doc/model.md section 18): in the arrays of a stepper's runs only.
 #: step_position [rad] and step_rate [rad/s]: the motor angle and rate the step
 #: generator commands (the angle of the microstep the driver sets); phase_current_a,
 #: phase_current_b [A] (physical phases: theta_e = N_r theta, i_a* = I cos, i_b* = I sin);

@@ -16,7 +16,7 @@ __all__ = ['ParameterError', 'ScrewParams']
 #: Values of drive_feedback: where the drive's position loop takes its angle from.
 DRIVE_FEEDBACKS = ('motor_encoder', 'linear_scale')
 
-#: Values of drive_type: the servo drive (physics.md section 10) or the stepper (section 14).
+#: Values of drive_type: the servo drive (doc/model.md section 16) or the stepper (section 14).
 DRIVE_TYPES = ('servo', 'stepper')
 
 
@@ -25,7 +25,7 @@ DRIVE_TYPES = ('servo', 'stepper')
 class ScrewParams(Schema):
     """Physical parameters of screw, nut, load, motor and integration (SI)."""
 
-    # Geometry (physics.md section 1)
+    # Geometry (doc/model.md section 2)
     thread_form: str = field('trapezoidal', '-', 'thread form; sets the axial half-angle psi_a '
                              '(square 0, acme/stub_acme 14.5 deg, trapezoidal 15 deg)',
                              choices=tuple(geometry.THREAD_HALF_ANGLES), read_only=True)
@@ -77,7 +77,7 @@ class ScrewParams(Schema):
     max_torque: float = field(2.0, 'N m', 'motor torque saturation T_max', 1e-6, 1e5)
     torque_lag: float = field(0.0, 's', 'motor torque first-order lag tau_e; 0 means none',
                               0.0, 10.0)
-    # Servo drive (physics.md section 10; angles and rates of the motor)
+    # Servo drive (doc/model.md section 16; angles and rates of the motor)
     drive_rate: float = field(4000.0, 'Hz', 'servo drive update rate asked for; the drive '
                               'updates every m = max(1, round(substeps per step * update_rate '
                               '/ drive_rate)) substeps', 1.0, 1e6)
@@ -108,7 +108,7 @@ class ScrewParams(Schema):
                                  'less the hysteresis (an output only)', -1000.0, 1000.0)
     switch_hysteresis: float = field(1e-3, 'm', 'hysteresis of the limit and home switches',
                                      0.0, 1.0)
-    # Stepper motor and driver (physics.md section 14; used with drive_type stepper)
+    # Stepper motor and driver (doc/model.md section 18; used with drive_type stepper)
     drive_type: str = field('servo', '-', 'the motor and its drive: a servo motor with the '
                             'servo drive, or a two-phase hybrid stepper with a microstepping '
                             'driver and a step generator (position and velocity commands only)',
@@ -147,7 +147,7 @@ class ScrewParams(Schema):
                                      'changes, quick stop)', 0.0, 1e9, lo_open=True)
     rotor_damping: float = field(1e-4, 'N m s/rad', 'viscous damping B of the stepper rotor',
                                  0.0, 10.0)
-    # Sensors (physics.md section 11); all ideal by default
+    # Sensors (doc/model.md section 17); all ideal by default
     encoder_counts: int = field(0, '-', 'motor encoder counts per revolution N; 0 means no '
                                 'quantisation', 0, 2 ** 31 - 1)
     encoder_noise: float = field(0.0, 'rad', 'standard deviation of the motor encoder\'s '

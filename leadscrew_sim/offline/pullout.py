@@ -1,5 +1,5 @@
 """
-The pull-out torque of a stepper axis's motor and driver against step rate (physics.md 14).
+The pull-out torque of a stepper axis against step rate (doc/model.md section 18).
 
 :func:`pullout_curve` measures it on the simulated motor: the axis's motor,
 driver and inertias on an ideal load (horizontal, frictionless, backlash-free,

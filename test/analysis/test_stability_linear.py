@@ -1,5 +1,5 @@
 """
-Linear stability of steady sliding against oracles derived here (physics.md sections 2, 9, 12).
+Linear stability of steady sliding against oracles derived here (doc/model.md, doc/stability.md).
 
 Each oracle is written from the equations in this file: the rigid 1-DOF
 threshold, a screw + nut eigen-analysis with a compliant contact, the

@@ -34,7 +34,7 @@ def coulomb_axis():
 
 
 def closed_form(p, v):
-    """Return (period, stick fraction) of exact Coulomb stick-slip (physics.md 12)."""
+    """Return (period, stick fraction) of exact Coulomb stick-slip (doc/stability.md)."""
     lead = p.pitch * p.starts
     rm = (p.major_diameter - p.pitch / 2.0) / 2.0
     rt = lead / (2 * math.pi)

@@ -1,5 +1,5 @@
 """
-The servo drive (physics.md section 10) against closed forms and independent recursions.
+The servo drive (doc/model.md section 16) against closed forms and independent recursions.
 
 Oracles:
 - the cascaded loop on a rigid, frictionless, backlash-free axis is linear: its

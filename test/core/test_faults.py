@@ -1,5 +1,5 @@
 """
-Injected faults at the model level (fault.* parameters, physics.md sections 10-11).
+Injected faults at the model level (fault.* parameters, doc/model.md sections 16-17).
 
 Oracles:
 - the quasi-static thread closed forms of :mod:`leadscrew_sim.core.geometry`

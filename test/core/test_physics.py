@@ -1,9 +1,9 @@
 """
-Physics core against closed forms and independent references (physics.md).
+Physics core against closed forms and independent references (doc/model.md).
 
-Oracles: the seed's lead angles, Shigley's raise/lower torques (physics.md
-section 2), the rigid-contact equations of motion solved by hand, and
-scipy's Radau integrator on the equations of physics.md written out here.
+Oracles: the seed's lead angles, Shigley's raise/lower torques (doc/model.md
+section 7), the rigid-contact equations of motion solved by hand, and
+scipy's Radau integrator on the equations of doc/model.md written out here.
 """
 import math
 
@@ -177,7 +177,7 @@ def test_anti_backlash_nut_dead_band_only_above_preload():
 
 def test_anti_backlash_friction_grows_with_preload():
     # Horizontal, steady speed: both flanks carry F_p, so the thread friction of
-    # the two half-nuts sums to mu' * 2 F_p / cos(lambda) (physics.md section 7).
+    # the two half-nuts sums to mu' * 2 F_p / cos(lambda) (doc/model.md section 11).
     def friction_sum(fp):
         p = load_preset('anti_backlash').replace(preload_force=fp, mu_s=0.12, mu_k=0.12)
         m = LeadScrewModel(p, dt=1e-4)

@@ -1,5 +1,5 @@
 """
-The axis's sensors (physics.md section 11), the truth values and the message faults' core parts.
+The axis's sensors (doc/model.md section 17), the truth values and the message faults' core parts.
 
 Oracles:
 - counting: a quantised reading is a whole number of counts, ``floor`` of the

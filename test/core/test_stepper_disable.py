@@ -1,5 +1,5 @@
 """
-A disabled stepper on a vertical axis (physics.md sections 2 and 14).
+A disabled stepper on a vertical axis (doc/model.md sections 7 and 18).
 
 Disabled (a latched drive fault: here an injected one) the driver's bridge is
 off and the windings open: the currents fall to 0 and the rotor feels only

@@ -1,5 +1,5 @@
 """
-Pull-out torque against step rate, and lost steps (physics.md section 14).
+Pull-out torque against step rate, and lost steps (doc/model.md section 18).
 
 Oracle: the steady-state phasor model of the driven stepper at constant
 speed w (electrical w_e = N_r w) and load angle delta (the rotor's

@@ -1,5 +1,5 @@
 """
-Low-speed resonance of the stepper: full steps against 16 microsteps (physics.md section 14).
+Low-speed resonance of the stepper: full steps against 16 microsteps (doc/model.md section 18).
 
 Oracle: the rotor's small-signal natural frequency f_n = sqrt(N_r (T_h + 4
 T_d) / J_total) / (2 pi) (J_total with the screw and the nut through the

@@ -1,5 +1,5 @@
 """
-The stepper at rest and after one step (physics.md section 14), against closed forms.
+The stepper at rest and after one step (doc/model.md section 18), against closed forms.
 
 Oracles:
 - static torque: at rest under a load torque T_L the rotor sits where the

@@ -35,7 +35,7 @@ def latest_diag(diags, key):
 
 
 def nut_direction(torque, preset='tr12x3'):
-    """Return the expected sign of the nut motion for a torque (physics.md section 3)."""
+    """Return the expected sign of the nut motion for a torque (doc/model.md section 3)."""
     hand = load_preset(preset).hand
     # Right-hand thread: positive torque (theta sense) moves the nut toward -x.
     return -math.copysign(1.0, torque) if hand == 'right' else math.copysign(1.0, torque)

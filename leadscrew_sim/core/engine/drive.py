@@ -1,5 +1,5 @@
 """
-The servo drive of the axis (physics.md section 10): timing, the loop law, the command rows.
+The servo drive of the axis (doc/model.md section 16): timing, the loop law, the command rows.
 
 The drive runs inside the kernel (kernel._steps): every m substeps it reads
 its feedback (q_fb, w_fb: one marked place in the kernel) and updates the

@@ -1,5 +1,5 @@
 """
-The friction law of the thread contact (physics.md section 6), compiled.
+The friction law of the thread contact (doc/model.md section 6), compiled.
 
 The law is self-contained: the kernel never names its parameters. They live
 in the friction block of the parameter vector (N_FRICTION slots from
@@ -77,7 +77,7 @@ def mu_apparent(P, v):
     """
     Apparent Stribeck friction coefficient mu'(|v|), >= 0, from the parameter vector.
 
-    The plain formula of physics.md section 6; the kernel uses _mu, the same law
+    The plain formula of doc/model.md section 6; the kernel uses _mu, the same law
     with a bit-exact shortcut, tested against this one.
     """
     muk, muv, drop, vst, _, dst, _ = friction_constants(P)

@@ -1,7 +1,7 @@
 """
 Fixed-step integration kernel of the lead screw model (ROS-free, numba-compiled).
 
-Generalised coordinates, all in the "q sense" of physics.md section 3
+Generalised coordinates, all in the "q sense" of doc/model.md section 3
 (q = hand sign times theta, so x = r_m tan(lambda) q for every hand):
     u = [motor angle rate, screw angle rate, nut A velocity, half-nut B velocity].
 
@@ -13,11 +13,11 @@ the small box-constrained LCP exactly. A stuck element keeps its sliding
 velocity at zero to round-off, so a self-locking screw does not creep
 (no tanh or ramp regularisation).
 
-The servo drive (drive.py, physics.md section 10) runs inside the substep
+The servo drive (drive.py, doc/model.md section 16) runs inside the substep
 loop: in velocity, position and quick stop mode it updates the held motor
 torque command every m substeps; in torque mode it does not run and the
 step takes the torque path of the kernel without a drive. A stepper
-(stepper.py, physics.md section 14; P_STEPPER) replaces both: its stage
+(stepper.py, doc/model.md section 18; P_STEPPER) replaces both: its stage
 runs in every substep and gives the motor torque from its phase currents.
 
 This module holds the integrator _steps and its entry points step,

@@ -2,7 +2,7 @@
 Array layouts of the kernel: parameter vector, state, outputs and workspace.
 
 Every index is a named constant; angles, rates and torques are in the "q sense"
-of physics.md section 3 (q = hand * theta, so x = r_m tan(lambda) q for both
+of doc/model.md section 3 (q = hand * theta, so x = r_m tan(lambda) q for both
 hands). Each constant's comment gives the meaning and unit of its slot.
 The workspace offsets are derived from the sizes of the blocks they hold.
 
@@ -12,13 +12,13 @@ writes them, friction_constants reads them), so the kernel never names them.
 The drive's block follows it (so the friction block, which friction.py's
 compiled code bakes in, has not moved since that module last changed).
 
-The servo drive (drive.py, physics.md section 10) has its parameter slots
+The servo drive (drive.py, doc/model.md section 16) has its parameter slots
 P_DRATE .. P_HYST, its state S_CMODE .. S_DWREF (the held command, then the
 drive's own state: mode, target, integral, held torque, update phase, fault,
 switches) and its outputs O_DMODE .. O_DWREF; a command row of step_held()
 and run_series is N_CMD floats (mode, q, w, torque), all in the q sense.
 
-The stepper (stepper.py, physics.md section 14) has its parameter slots
+The stepper (stepper.py, doc/model.md section 18) has its parameter slots
 P_STEPPER .. P_SNOENC, its state S_IA .. S_SIDLE (phase currents, the step
 generator) and its outputs O_IA .. O_ISET; it uses the servo drive's held
 command, mode, target, quick stop and fault slots as they are.
@@ -78,7 +78,7 @@ P_LMIN = P_DRATE + 11   # min limit switch position [m]: trips at x <= P_LMIN
 P_LMAX = P_DRATE + 12   # max limit switch position [m]: trips at x >= P_LMAX
 P_HOME = P_DRATE + 13   # home switch position [m]: on at x >= P_HOME
 P_HYST = P_DRATE + 14   # switch hysteresis [m]
-# sensors (sensors.py, physics.md section 11) and the faults injected into the kernel
+# sensors (sensors.py, doc/model.md section 17) and the faults injected into the kernel
 P_ECPR = P_DRATE + 15   # motor encoder counts per revolution; 0: no quantisation
 P_ENOISE = P_DRATE + 16  # motor encoder noise standard deviation [rad]
 P_EBIAS = P_DRATE + 17  # motor encoder bias [rad], q sense
@@ -96,7 +96,7 @@ P_JAM = P_DRATE + 28    # 1.0: a rigid obstacle (end stop law) at P_JAMX blocks 
 P_JAMX = P_DRATE + 29   # jam position [m]
 P_TSCALE = P_DRATE + 30  # motor torque scale 0..1 (a weakened motor delivers this share)
 P_FINJ = P_DRATE + 31   # 1.0: a drive fault is injected (latched while set)
-# stepper motor and driver (stepper.py, physics.md section 14; motor quantities in the q sense)
+# stepper motor and driver (stepper.py, doc/model.md section 18; motor quantities in the q sense)
 P_STEPPER = P_DRATE + 32  # 1.0: the motor is a stepper with its driver (no servo drive)
 P_NR = P_DRATE + 33     # rotor teeth N_r: electrical angle per motor angle [-]
 P_USTEP = P_DRATE + 34  # microstep angle: step angle / microsteps [rad]

@@ -143,7 +143,7 @@ def initial_seating(p, v):
     Return (q0 [rad], x_a [m], x_b [m]): the initial screw/motor angle (q sense) and nut positions.
 
     The nut rests at ``initial_position`` on the flank its static load presses
-    (physics.md, initial state); the screw angle follows from the flank
+    (doc/model.md section 12, initial state); the screw angle follows from the flank
     penetration of that load.
 
     Parameters

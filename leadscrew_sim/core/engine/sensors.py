@@ -1,5 +1,5 @@
 """
-The axis's sensors (physics.md section 11): motor encoder, linear scale and their noise.
+The axis's sensors (doc/model.md section 17): motor encoder, linear scale and their noise.
 
 The kernel samples both sensors at the end of every drive period (every
 ``m`` substeps, :func:`.drive.update_period`), in the drive's loop and in

@@ -1,5 +1,5 @@
 """
-The stepper motor and its driver (physics.md section 14), compiled stages of the kernel.
+The stepper motor and its driver (doc/model.md section 18), compiled stages of the kernel.
 
 A two-phase hybrid stepper with N_r rotor teeth: electrical angle theta_e =
 N_r (q_m - q_0), with q_0 the motor angle of the initial state (the driver
