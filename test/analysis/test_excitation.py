@@ -142,6 +142,11 @@ def test_vectorised_values_equal_the_scalar_call_bit_for_bit(name):
     ('iso230', dict(bogus=1), "option 'bogus' is unknown (options: center, travel"),
 ])
 def test_bad_options_raise_one_clear_error(name, options, fragment):
+    assert_one_clear_error(name, options, fragment)
+
+
+def assert_one_clear_error(name, options, fragment):
+    """Assert that the profile refuses the options with one line naming it and the fragment."""
     with pytest.raises(E.ProfileError) as info:
         E.make_profile(name, load_preset('tr12x3'), **options)
     msg = str(info.value)

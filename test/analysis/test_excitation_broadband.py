@@ -14,10 +14,11 @@ import math
 from helpers import cli
 from leadscrew_sim import load_preset
 from leadscrew_sim.analysis.excitation import profiles as E
-from leadscrew_sim.core.fields import ParameterError
 from leadscrew_sim.core.params import ScrewParams
 import numpy as np
 import pytest
+
+from test_excitation import assert_one_clear_error   # noqa: I100
 
 PRESETS = ('tr12x3', 'tr8x8', 'stick_slip', 'seed_a')
 COMMANDS = ('torque', 'velocity', 'position')
@@ -186,11 +187,7 @@ def test_scalar_and_vector_values_agree_bit_for_bit(preset, command):
     ('multisine', dict(lines=0), "option 'lines' = 0 -: must lie in [1, 100000]"),
 ])
 def test_bad_options_raise_one_clear_error(name, options, fragment):
-    with pytest.raises(E.ProfileError) as info:
-        E.make_profile(name, load_preset('tr12x3'), **options)
-    msg = str(info.value)
-    assert msg.startswith(f"excitation '{name}': ") and fragment in msg, msg
-    assert '\n' not in msg and isinstance(info.value, ParameterError)
+    assert_one_clear_error(name, options, fragment)
 
 
 def test_excite_refuses_a_command_rate_that_cannot_carry_the_band():
