@@ -28,8 +28,8 @@ from .engine import layout as L
 from .engine import sensors as SN
 from .faults import SimulationFault
 from .views import ReportedValues
-from .output import (energy_balance, lost_full_steps, series_result, step_output,
-                     stored_energy)
+from .output import (energy_balance, lost_full_steps, REPORTED, selected_result, series_result,
+                     step_output, stored_energy)
 from .engine.packing import auto_substep, initial_seating, MAX_SUBSTEPS_PER_STEP, pack_params
 from .params import ParameterError, ScrewParams
 
@@ -125,6 +125,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
         p = self.params
         s = self.state
         s[:] = 0.0
+        self._wk[:] = 0.0          # the kernel's scratch as new: a reset model is a new model
+        self._iwk[:] = 0
         self._P = pack_params(p)
         q0, xa, xb = initial_seating(p, self._P)
         s[L.S_Q] = s[L.S_QM] = q0
@@ -198,7 +200,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
             self._fail(f'non-finite state at t={self.state[L.S_T]:.6f} s '
                        f'(torque {torque} N m); integration stopped')
 
-    def run(self, torques, external_forces=None, *, commands=None, drive_values=False):
+    def run(self, torques, external_forces=None, *, commands=None, drive_values=False,
+            values=None):
         """
         Run one step of ``dt`` per torque (or per drive command) in a single compiled call.
 
@@ -217,6 +220,11 @@ class LeadScrewModel(DriveControl, ReportedValues):
             row stays the held command.
         drive_values : bool
             Also return the drive's values (as with ``commands``) of a torque run.
+        values : iterable of str, optional
+            Return only these arrays (names of :data:`.output.REPORTED`, the
+            values a step records, in their units and senses): the lean path
+            for many short runs, with no derived value (energy, nut forces,
+            lost steps).
 
         Returns
         -------
@@ -254,12 +262,23 @@ class LeadScrewModel(DriveControl, ReportedValues):
 
         """
         hs = self.params.hand_sign
+        if values is not None:
+            values = tuple(values)
+            unknown = [v for v in values if v not in REPORTED]
+            if unknown:
+                raise ValueError(f'values: {", ".join(map(repr, unknown))} not reported; '
+                                 f'the allowed names are {", ".join(REPORTED)}')
         tq_q, fe, cmds = self._series_inputs(torques, external_forces, commands)
         n = len(fe)
         self._check_fault()
         rec = np.empty((n, L.REC_STATE + L.NO))
         done = K.run_series(self._P, self.state, self.out, tq_q, fe, cmds,
                             self.dt, self.nsub, self._wk, self._iwk, rec)
+        if values is not None:
+            res = selected_result(rec[:done], hs, values)
+            if done < n:
+                self._fail(f'non-finite state at step {done}; integration stopped')
+            return res
         stepper = self.is_stepper
         res = series_result(rec[:done], hs, commands is not None or drive_values,
                             float(self._P[L.P_CL]), float(self._P[L.P_SL]), stepper)

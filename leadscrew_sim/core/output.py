@@ -252,6 +252,36 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0, stepper=False):
     return res
 
 
+def selected_result(r, hs, names):
+    """
+    Return some per-step arrays of a run from its records: name -> array, theta sense.
+
+    The lean reading of :func:`series_result`: only the :data:`REPORTED`
+    values named, nothing derived (no nut forces, no energy).
+
+    Parameters
+    ----------
+    r : numpy.ndarray, shape (n, REC_STATE + NO)
+        The records of the steps done (q sense).
+    hs : float
+        The hand sign of the thread (+1 left, -1 right).
+    names : iterable of str
+        Names of :data:`REPORTED`.
+
+    """
+    res = {}
+    for name in names:
+        col, sense, kind = REPORTED[name]
+        v = r[:, col]
+        if sense != AS_RECORDED and hs != 1:
+            v = hs * v
+        if sense == THETA_NO_NEG_ZERO:
+            v = v + 0.0
+        res[name] = (v.astype(int) if kind == CODE else v == 1.0 if kind == FLAG
+                     else np.array(v))
+    return res
+
+
 def lost_full_steps(step_position, motor_angle, rotor_teeth):
     """
     Return the full steps the rotor lost against the command: a multiple of 4 (simulation truth).

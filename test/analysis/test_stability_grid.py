@@ -122,3 +122,21 @@ def test_axes_values_and_order():
     assert name == 'speed' and vals == pytest.approx([1e-4, 1e-3, 1e-2], rel=1e-12)
     cases = expand([('a', [1, 2]), ('b', [3, 4, 5])])
     assert [c['b'] for c in cases] == [3, 4, 5, 3, 4, 5] and cases[3]['a'] == 2
+
+
+def test_reused_models_give_the_rows_of_new_ones(serial):
+    """A batch reuses one reset model per parameter set: the rows of a new model per case."""
+    from leadscrew_sim.analysis.stability.grid import run_case
+    base = load_preset('stick_slip')
+    cases = expand([parse_axis(g, base) for g in GRID])
+    fresh = [run_case(base, c, None, 'ideal', 'both', 0.3) for c in cases]   # no cache
+    assert identical(fresh, serial)
+
+
+def test_cases_grouped_by_parameter_set():
+    """The batches' order puts the cases of one parameter set together, keeping their order."""
+    from leadscrew_sim.analysis.stability.executors import grouped_order
+    cases = expand([('speed', [1.0, 2.0, 3.0]), ('mu_k', [0.1, 0.2])])
+    order = grouped_order(cases)
+    assert [cases[i]['mu_k'] for i in order] == [0.1] * 3 + [0.2] * 3
+    assert [cases[i]['speed'] for i in order] == [1.0, 2.0, 3.0] * 2

@@ -1,10 +1,12 @@
 """
 Running the cases of a grid: in this process, on local worker processes, or on Dask.
 
-The cases go out in batches (contiguous runs of cases); each batch returns
-its rows and the rows are put back in case order, so the table is the same,
-bit for bit, however the work was distributed: every case runs the same code
-on its own model, and the model is deterministic.
+The cases go out in batches: runs of cases with the cases of one parameter
+set together (:func:`grouped_order`), so that a batch builds each set's
+parameters and model once and resets the model between its cases. Each batch
+returns its rows and the rows are put back in case order, so the table is the
+same, bit for bit, however the work was distributed: a reset model is a new
+model, and the model is deterministic.
 
 numba's on-disk cache is not safe against several processes compiling and
 writing the same entries at once (numba's GitHub #4807), so the parent warms the
@@ -34,11 +36,13 @@ import threading
 
 import numpy as np
 
-__all__ = ['identical', 'keep_freed_memory', 'run_batch', 'run_cases', 'SCHEDULER_TIMEOUT', 'warm']
+__all__ = ['grouped_order', 'identical', 'keep_freed_memory', 'run_batch', 'run_cases',
+           'SCHEDULER_TIMEOUT', 'warm']
 
 SCHEDULER_TIMEOUT = 8.0     #: seconds to reach a Dask scheduler (the error comes within 10 s)
 START_METHOD = None        #: local workers' start method; None: fork if safe, else spawn
-BATCHES_PER_WORKER = 4      #: batches per worker (load balance against per-batch cost)
+BATCHES_PER_WORKER = 16     #: batches per worker (load balance against per-batch cost)
+DASK_THREADS_UNKNOWN = 8    #: workers assumed when a Dask scheduler reports none yet
 _WARM = []                  # set once this process has warmed its kernel
 
 
@@ -104,6 +108,19 @@ def _start_method():
     return 'spawn'
 
 
+def grouped_order(cases):
+    """
+    Return the case indices with the cases of one parameter set together (stable).
+
+    Cases that differ in speed only share their parameters and, within a
+    batch, their model (reset between cases): grouping them makes each set's
+    parameters and model be built about once, whatever the order of the axes.
+    """
+    def key(i):
+        return tuple(sorted((k, v) for k, v in cases[i].items() if k != 'speed'))
+    return sorted(range(len(cases)), key=key)
+
+
 def _batches(n, workers):
     size = max(1, math.ceil(n / (max(1, workers) * BATCHES_PER_WORKER)))
     return [(i, min(n, i + size)) for i in range(0, n, size)]
@@ -129,10 +146,15 @@ class _Progress:
             sys.stderr.write('\n')
 
 
-def _local(args, spans, cases, workers, bar, rows):
+def _put(rows, order, a, b, batch_rows):
+    for j, row in zip(order[a:b], batch_rows):
+        rows[j] = row
+
+
+def _local(args, spans, cases, order, workers, bar, rows):
     if workers <= 1 or len(spans) <= 1:
         for a, b in spans:
-            rows[a:b] = run_batch(args[0], cases[a:b], *args[1:])
+            _put(rows, order, a, b, run_batch(args[0], cases[a:b], *args[1:]))
             bar.add(b - a)
         return
     warm()                      # the parent fills numba's cache before any worker starts
@@ -143,13 +165,13 @@ def _local(args, spans, cases, workers, bar, rows):
                 for a, b in spans}
         for fut in cf.as_completed(futs):
             a, b = futs[fut]
-            rows[a:b] = fut.result()
+            _put(rows, order, a, b, fut.result())
             bar.add(b - a)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask(args, spans, cases, scheduler, bar, rows):
+def _dask(args, cases, order, scheduler, bar, rows):
     from ...core.params import ParameterError
     try:
         from distributed import Client
@@ -163,10 +185,12 @@ def _dask(args, spans, cases, scheduler, bar, rows):
                              f'{SCHEDULER_TIMEOUT:g} s ({type(exc).__name__})') from None
     try:
         warm()
+        threads = sum(client.nthreads().values()) or DASK_THREADS_UNKNOWN
+        spans = _batches(len(cases), threads)
         futs = [client.submit(run_batch, args[0], cases[a:b], *args[1:], pure=False)
                 for a, b in spans]
         for fut, (a, b) in zip(futs, spans):     # collected in submission order
-            rows[a:b] = fut.result()
+            _put(rows, order, a, b, fut.result())
             bar.add(b - a)
     finally:
         client.close()
@@ -205,14 +229,15 @@ def run_cases(base, cases, speed, drive='velocity', method='both', duration=2.0,
         raise ParameterError('workers', f'{workers} is below the allowed minimum 1')
     rows = [None] * len(cases)
     args = (base, speed, drive, method, duration)
-    spans = _batches(len(cases), workers if scheduler is None else 8)
+    order = grouped_order(cases)
+    by_params = [cases[j] for j in order]
     bar = _Progress(len(cases), progress)
     complete = True
     try:
         if scheduler is None:
-            _local(args, spans, cases, workers, bar, rows)
+            _local(args, _batches(len(cases), workers), by_params, order, workers, bar, rows)
         else:
-            _dask(args, spans, cases, scheduler, bar, rows)
+            _dask(args, by_params, order, scheduler, bar, rows)
     except KeyboardInterrupt:
         complete = False
     finally:

@@ -166,7 +166,8 @@ def run_case(base, case, speed, drive='velocity', method='both', duration=2.0, c
     duration : float
         Length of each nonlinear run [s].
     cache : dict, optional
-        Shared parameter sets of the batch (see :func:`case_params`).
+        Shared parameter sets and models of the batch (see :func:`case_params`
+        and :func:`.nonlinear.nonlinear_stability`).
 
     """
     row = dict(case)
@@ -180,7 +181,8 @@ def run_case(base, case, speed, drive='velocity', method='both', duration=2.0, c
             row.update({k: lin[k] for k in ('growth_rate', 'frequency', 'mechanism',
                                             'effective_inertia')})
         if method in ('nonlinear', 'both'):
-            row.update(nonlinear_stability(params, v, drive, duration))
+            models = cache.setdefault('models', {}) if cache is not None else None
+            row.update(nonlinear_stability(params, v, drive, duration, models=models))
     except (ValueError, SimulationFault, ArithmeticError, np.linalg.LinAlgError) as exc:
         row['error'] = ' '.join(str(exc).split())
     return row

@@ -44,6 +44,7 @@ SMALL_PERTURBATION = 0.02       #: nut velocity perturbation of the small start 
 MEASURED = 0.5                  #: share of each run measured (the end of it)
 OSCILLATING = 0.05              #: amplitude that counts as an oscillation [share of |v|]
 IDEAL_MOTOR_INERTIA = 10.0      #: motor inertia of the prescribed motor [kg m^2] (the bound)
+MODELS_KEPT = 256               #: models a ``models`` dict keeps for reuse (the newest)
 #: The verdicts of the CSV column ``verdict``.
 VERDICTS = ('stable', 'limit_cycle', 'bistable')
 
@@ -52,7 +53,7 @@ def _run_velocity(model, op, n):
     """Run n steps under the held velocity command; return (nut velocity, stuck)."""
     hs = model.params.hand_sign
     rows = np.tile([[MODE_VELOCITY, math.nan, hs * op['w_ref'], 0.0]], (n, 1))
-    res = model.run(None, commands=rows)
+    res = model.run(None, commands=rows, values=('nut_velocity', 'stuck'))
     return res['nut_velocity'], res['stuck'].astype(float)
 
 
@@ -101,7 +102,7 @@ def _one_run(model, op, duration, dt, stuck):
     return amp, share, period, abs(float(vel[k:].mean()) - op['speed'])
 
 
-def nonlinear_stability(params, speed, drive='velocity', duration=2.0, dt=1e-3):
+def nonlinear_stability(params, speed, drive='velocity', duration=2.0, dt=1e-3, models=None):
     """
     Run the full model from steady sliding, a small and a large start, and judge it.
 
@@ -117,6 +118,11 @@ def nonlinear_stability(params, speed, drive='velocity', duration=2.0, dt=1e-3):
         Length of each run [s].
     dt : float
         Step of the runs (the recorded samples) [s].
+    models : dict, optional
+        Models built by earlier calls, by (params, drive, dt): a call with the
+        same ones resets and reuses its model instead of building one (a reset
+        model is a new one, so the result is the same bit for bit); it keeps
+        the newest MODELS_KEPT.
 
     Returns
     -------
@@ -139,9 +145,18 @@ def nonlinear_stability(params, speed, drive='velocity', duration=2.0, dt=1e-3):
     if abs(speed) * duration >= 0.9 * abs(room):
         raise ParameterError('duration', f'{duration!r} s at {speed!r} m/s travels beyond '
                              f'90 % of the {abs(room):.4g} m to the end stop')
-    if drive == 'ideal':
-        params = dataclasses.replace(params, motor_inertia=IDEAL_MOTOR_INERTIA)
-    model = LeadScrewModel(params, dt=dt)      # one model, reset between the two starts
+    key = (params, drive, dt)
+    model = models.get(key) if models is not None else None
+    if model is None:
+        run_params = (dataclasses.replace(params, motor_inertia=IDEAL_MOTOR_INERTIA)
+                      if drive == 'ideal' else params)
+        model = LeadScrewModel(run_params, dt=dt)
+        if models is not None:
+            if len(models) >= MODELS_KEPT:
+                models.pop(next(iter(models)))    # the oldest
+            models[key] = model
+    else:
+        model.reset()
     a_small, _, _, off_small = _one_run(model, op, duration, dt, stuck=False)
     model.reset()
     a_large, frac, period, off_large = _one_run(model, op, duration, dt, stuck=True)
