@@ -66,3 +66,42 @@ def test_report_table_and_verdict_agree(clean_sweep):
         ratio = float(rows[name][60:70])       # its column, 3 digits: 0.5 % rounding
         assert abs(ratio - rms / problem.noise[name][0]) <= 6e-3 * ratio + 1e-12, rows[name]
     assert 'does not explain' not in text
+
+
+#: The axis's own sensors: a 16-bit encoder with half a count of noise, a 1 um scale with
+#: 0.5 um of noise.
+SENSORS = dict(encoder_counts=2 ** 16, encoder_noise=0.5 * 2 * np.pi / 2 ** 16,
+               scale_resolution=1e-6, scale_noise=5e-7, sensor_seed=7)
+#: The friction truth against the preset's start (the identification tests' factors).
+FACTORS = dict(mu_s=1.25, mu_k=0.8, stribeck_velocity=1.3)
+#: The identification issue's tolerances: relative.
+TOLERANCE = dict(mu_s=0.02, mu_k=0.01, stribeck_velocity=0.10)
+
+
+#: stick_slip's sweep is within the tolerances too, but its mu_s and mu_k intervals
+#: (+-0.21 %, +-0.14 %) miss errors of 0.27 % and 0.76 % (doc/identification.md, "With a
+#: 16-bit encoder"): not checked here until they hold.
+@pytest.mark.parametrize('preset', ['tr12x3'])
+def test_sweep_with_the_axis_sensors_identifies_the_friction(preset, tmp_path):
+    """
+    The sweep recorded with the axis's own sensors identifies mu_s, mu_k and the Stribeck velocity.
+
+    Each within the identification issue's tolerance of the truth given to
+    ``simulate`` (mu_k 1 %, mu_s 2 %, Stribeck velocity 10 %), from the
+    preset's start, and each 95 % interval holds the truth: the bootstrap's
+    refits (synthetic recordings with other sensor seeds) must show the
+    estimator's error that the sensors' quantisation and noise cause.
+    """
+    p0 = load_preset(preset)
+    values = {n: getattr(p0, n) * f for n, f in FACTORS.items()}
+    values.update(SENSORS)
+    truth = load_preset(preset, **values)
+    rec = tmp_path / 'sweep.mcap'
+    sets = [a for n, v in values.items() for a in ('--set', f'{n}={v!r}')]
+    cli_ok('simulate', '--preset', preset, '--excite', 'sweep', *sets, '-q', '-o', rec)
+    res = _identify(rec, '--preset', preset)['res']
+    for name, tol in TOLERANCE.items():
+        vd, true = res.verdict(name), getattr(truth, name)
+        assert vd.identified, (name, vd)
+        assert abs(res.value(name) - true) <= tol * true, (name, res.value(name), true)
+        assert vd.lower <= true <= vd.upper, (name, vd.lower, vd.upper, true)

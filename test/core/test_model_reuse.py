@@ -17,7 +17,7 @@ from leadscrew_sim.core.presets import load_preset
 
 
 def rows(model, n, w):
-    """n velocity command rows at w [rad/s]."""
+    """Return n velocity command rows at w [rad/s]."""
     return np.tile([[MODE_VELOCITY, math.nan, w, 0.0]], (n, 1))
 
 

@@ -19,6 +19,16 @@ from ...core.params import ScrewParams
 #: Synthetic recordings of the parametric bootstrap of the intervals, and how far from the
 #: fitted values (in half-widths of their intervals) each refit starts.
 BOOTSTRAP, AWAY = 4, 2.0
+#: The least half-width the refits' starts count with when the first refits stalled
+#: [share of the value, or of the coordinate's typical size]: quantised sensors make the
+#: cost flat in steps, and a refit that starts within such a step stays there, which
+#: would hide the estimator's error.
+MIN_HALF_WIDTH = 0.01
+#: Refits that move a parameter, on average, by less than this share of their start's
+#: offset stayed where they started (stalled): the signals are flat there at their
+#: resolution. Refits that converge come back most of the way (they end within the
+#: noise's spread, about a quarter of the offset of two half-widths).
+STALLED = 0.25
 
 
 def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
@@ -35,7 +45,13 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     misses where the residuals are not the noise it assumes (quantisation
     of a slow signal, the loop's response to its sensors). The interval
     becomes value +- max(w, t_K s_b) (t quantile of K degrees of freedom: the
-    errors' mean is known to be 0). Returns the new FitResult.
+    errors' mean is known to be 0). The refits start AWAY half-widths off;
+    if they stay where they started for a parameter (they move it on average
+    by less than STALLED of their offset: flat signals at their resolution),
+    they are made again from at least MIN_HALF_WIDTH of the values off, and
+    that parameter takes the new refits' errors; where those stay too, value
+    +- t_K s_b is about their starts' spread: said to be a lower bound.
+    Returns the new FitResult.
 
     Parameters
     ----------
@@ -57,14 +73,21 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
         name -> (lower, upper) of each fitted parameter, the first fit's.
 
     """
-    errors, nfev = _refit_errors(problem, res, names, start, coords, max_nfev, bounds)
+    args = (problem, res, names, start, coords, max_nfev, bounds)
+    errors, stalled, nfev = _refit_errors(*args, floor=0.0)
+    identified = np.array([vd.identified for vd in res.verdicts])
+    if np.any(stalled & identified):     # again from farther off; those parameters take these
+        errors2, stalled2, nfev2 = _refit_errors(*args, floor=MIN_HALF_WIDTH)
+        errors = np.where(stalled, errors2, errors)
+        stalled = stalled & stalled2
+        nfev += nfev2 - res.nfev
     s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
     tq = t_975(BOOTSTRAP)
     verdicts, lower, upper = [], [], []
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
         problem.bootstrap[c.name] = float(s_b[i])
-        if vd.identified and tq * s_b[i] > 0.5 * (vd.upper - vd.lower):
-            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]))
+        if vd.identified and (stalled[i] or tq * s_b[i] > 0.5 * (vd.upper - vd.lower)):
+            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]), bool(stalled[i]))
         verdicts.append(vd)
         lower.append(vd.lower)
         upper.append(vd.upper)
@@ -74,17 +97,21 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
                                verdicts=verdicts, nfev=nfev)
 
 
-def _refit_errors(problem, res, names, start, coords, max_nfev, bounds):
+def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
     """
-    Return the errors of the refits of the synthetic recordings and the fit's nfev with theirs.
+    Return the refits' errors, whether each parameter stalled, and the fit's nfev with theirs.
 
-    The arguments are :func:`bootstrap`'s.
+    The arguments are :func:`bootstrap`'s; ``floor``: the least half-width a
+    refit's start counts with [share of the value, or of the typical size].
+    errors: array (BOOTSTRAP, parameters) of refit less fitted value;
+    stalled: per parameter, True if the refits moved it on average by less
+    than STALLED of their offset (they stayed where they started).
     """
     fitted = dict(zip(res.names, res.values))
     sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
     meas = problem.measurements
     recorded = (meas.data, meas.mask, problem.anchoring)
-    errors, nfev = [], res.nfev
+    errors, moves, offsets, nfev = [], [], [], res.nfev
     try:
         for j in range(BOOTSTRAP):
             sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
@@ -98,27 +125,49 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds):
             away = {}
             for i, (c, v, vd) in enumerate(zip(coords, res.values, res.verdicts)):
                 sign = (1.0, -1.0)[(j + (i if j >= 2 else 0)) % 2]
-                step = AWAY * 0.5 * (vd.upper - vd.lower) if vd.identified else 0.0
+                half = max(0.5 * (vd.upper - vd.lower), floor * max(abs(v), c.typical))
+                step = AWAY * half if vd.identified else 0.0
                 away[c.name] = min(c.upper, max(c.lower, v + sign * step))
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), bounds),
                 max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
             errors.append(np.array(syn.values) - np.array(res.values))
+            starts = np.array([away[c.name] for c in coords])
+            moves.append(np.array(syn.values) - starts)
+            offsets.append(starts - np.array(res.values))
             nfev += syn.nfev
     finally:
         meas.data, meas.mask, problem.anchoring = recorded
-    return errors, nfev
+    off = np.abs(np.array(offsets))
+    moved = np.abs(np.array(moves)) / np.where(off > 0.0, off, np.inf)
+    stalled = (np.mean(moved, axis=0) < STALLED) & np.all(off > 0.0, axis=0)
+    return np.array(errors), stalled, nfev
 
 
-def _widened(vd, v, c, hw, s_b):
-    """Return the verdict of value ``v`` of coordinate ``c`` with the half-width ``hw``."""
+def _widened(vd, v, c, hw, s_b, stalled=False):
+    """
+    Return the verdict of value ``v`` of coordinate ``c`` with the half-width ``hw``.
+
+    ``stalled``: the refits stayed where they started for this parameter, so
+    ``hw`` is about the width of those starts, a lower bound of the
+    interval, not a spread.
+    """
     lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
     rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
     ok = rel <= REL_MAX
-    why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
-           'refits of synthetic recordings)' if ok else
-           f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
-           f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
+    if stalled:
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % or wider (refits of '
+               f'{BOOTSTRAP} synthetic recordings started that far off stayed there: the '
+               'signals are flat there at their resolution)' if ok else
+               f'not identifiable: refits of {BOOTSTRAP} synthetic recordings started '
+               f'+-{100 * rel:.3g} % off stayed there: the signals are flat there at their '
+               'resolution')
+    elif ok:
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
+               'refits of synthetic recordings)')
+    else:
+        why = (f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
+               f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
     return dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi, rel=rel,
                                std=s_b)
 
