@@ -44,6 +44,13 @@ def write_csv(path, names, rows):
             w.writerow([repr(r[c]) if isinstance(r[c], float) else r[c] for c in cols])
 
 
+def _along(axes):
+    """Yield (name, stride, size) of each axis: the neighbour of case i along it is i + stride."""
+    sizes = [len(a[1]) for a in axes]
+    for k, (name, _values) in enumerate(axes):
+        yield name, math.prod(sizes[k + 1:]), sizes[k]
+
+
 def boundaries(axes, rows):
     """
     Return, per axis name, the values where growth_rate changes sign along that axis.
@@ -56,13 +63,11 @@ def boundaries(axes, rows):
         The rows in case order.
 
     """
-    sizes = [len(a[1]) for a in axes]
     out = {}
-    for k, (name, values) in enumerate(axes):
-        stride = math.prod(sizes[k + 1:])
+    for name, stride, size in _along(axes):
         found = []
         for i, r in enumerate(rows):
-            if (i // stride) % sizes[k] == sizes[k] - 1:
+            if (i // stride) % size == size - 1:
                 continue
             a, b = r, rows[i + stride]
             ga, gb = a['growth_rate'], b['growth_rate']
@@ -90,16 +95,14 @@ def bistable_ranges(axes, rows):
         The rows in case order.
 
     """
-    sizes = [len(a[1]) for a in axes]
     out = {}
-    for k, (name, _values) in enumerate(axes):
-        stride = math.prod(sizes[k + 1:])
+    for name, stride, size in _along(axes):
         found = []
         for i, r in enumerate(rows):
-            first = (i // stride) % sizes[k] == 0
+            first = (i // stride) % size == 0
             if r['verdict'] == 'bistable' and (first or rows[i - stride]['verdict'] != 'bistable'):
                 j = i
-                while ((j // stride) % sizes[k] < sizes[k] - 1
+                while ((j // stride) % size < size - 1
                        and rows[j + stride]['verdict'] == 'bistable'):
                     j += stride
                 found.append((r[name], rows[j][name]))
