@@ -86,7 +86,7 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     verdicts, lower, upper = [], [], []
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
         problem.bootstrap[c.name] = float(s_b[i])
-        if vd.identified and (stalled[i] or tq * s_b[i] > 0.5 * (vd.upper - vd.lower)):
+        if vd.identified and tq * s_b[i] > 0.5 * (vd.upper - vd.lower):   # never narrower
             vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]), bool(stalled[i]))
         verdicts.append(vd)
         lower.append(vd.lower)
