@@ -87,7 +87,7 @@ def fit_recording(args, progress=None):
         problem.stage = 'second fit'
         res, initial, final, misfit = _rescanned(plan, weights, (res, initial, final, misfit))
         second = not misfit
-    problem.bootstrap = {}
+    problem.bootstrap, problem.resolution = {}, {}
     if misfit:      # final stays the rejected fit's: the report's RMS is the verdict's
         res = _reject(res, misfit)
     elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \

@@ -199,3 +199,57 @@ def test_anchoring_moves_screw_and_nut_by_one_lead_and_keeps_the_gap():
     h = m.dt / m.nsub
     assert abs(s1[L.S_QM] - (q + hs * 0.05)) < 1e-12
     assert abs(s1[L.S_WM] - hs * 0.05 * (1 - math.cos(447.0 * h)) / h) < 1e-9
+
+
+class _Rippled:
+    """
+    A fit problem whose residuals in mu_k are a line plus a ripple: (d + A sin(2 pi d / P)) / s.
+
+    d = mu_k - truth [-], with fixed noise e_i added. For A > P the line has
+    spurious zeros near every multiple of P, each a local minimum of the
+    cost, as a drive loop over coarse sensors makes a stick-slip recording's
+    cost rough; A = 0 is smooth.
+    """
+
+    jac_steps = ident.INTERVAL_JAC_STEPS
+
+    def __init__(self, truth, ripple, period):
+        self.truth, self.ripple, self.period = truth, ripple, period
+        self.noise = np.random.default_rng(3).standard_normal(400)
+
+    def residuals(self, values, n=None):
+        d = values['mu_k'] - self.truth
+        line = d + self.ripple * math.sin(2 * math.pi * d / self.period)
+        return (line / 1e-4 + self.noise)[None, :]
+
+
+@pytest.mark.parametrize('ripple', [0.0, 2e-3])
+def test_the_recordings_refits_bound_the_interval_of_a_rough_cost(ripple):
+    """
+    Refits of the recording from 1 % off that stay there make the interval at least that wide.
+
+    mu_k = 0.12; the ripple's period P is 1.2e-3 (1 % of the value) and its
+    amplitude 2e-3, so the residual's line d + A sin(2 pi d / P) has a zero
+    near every d = k P: at d = P (1 - delta) with 1 - delta = 10.5 delta,
+    delta = 0.087. A refit from 1.2e-3 (1 %) off lands on that spurious zero
+    9 % of its offset from its start (it stays), and so does one from
+    -1.2e-3: the interval must be at least +-1 % and say it is a lower
+    bound. Without the ripple the cost is a
+    parabola, the refits come back to the minimum, and the interval stays the
+    Jacobian's: 1.96 x 1e-4 / sqrt(400) / 0.12 = 0.0082 % (widened by nothing).
+    """
+    from leadscrew_sim.analysis.identify.bootstrap import resolution
+    start = load_preset('tr12x3', mu_k=0.12)
+    problem = _Rippled(0.12, ripple, 1.2e-3)
+    coords = ident.coordinates(['mu_k'], start)
+    res = ident.fit(problem.residuals, coords)
+    bounds = {c.name: (c.lower, c.upper) for c in coords}
+    assert abs(res.value('mu_k') - 0.12) < 1e-4            # the fit's own start is the truth
+    out = resolution(problem, res, ['mu_k'], start, coords, None, bounds)
+    vd = out.verdict('mu_k')
+    if ripple:
+        assert vd.identified and vd.rel >= 0.01 * (1 - 1e-12) and 'or wider' in vd.reason, vd
+        assert problem.resolution == {'mu_k': pytest.approx(0.01 * res.value('mu_k'))}
+    else:
+        assert vd == res.verdict('mu_k') and problem.resolution == {}
+        assert vd.rel == pytest.approx(1.96 * 1e-4 / math.sqrt(400) / 0.12, rel=0.05)

@@ -78,10 +78,7 @@ FACTORS = dict(mu_s=1.25, mu_k=0.8, stribeck_velocity=1.3)
 TOLERANCE = dict(mu_s=0.02, mu_k=0.01, stribeck_velocity=0.10)
 
 
-#: stick_slip's sweep is within the tolerances too, but its mu_s and mu_k intervals
-#: (+-0.21 %, +-0.14 %) miss errors of 0.27 % and 0.76 % (doc/identification.md, "With a
-#: 16-bit encoder"): not checked here until they hold.
-@pytest.mark.parametrize('preset', ['tr12x3'])
+@pytest.mark.parametrize('preset', ['tr12x3', 'stick_slip'])
 def test_sweep_with_the_axis_sensors_identifies_the_friction(preset, tmp_path):
     """
     The sweep recorded with the axis's own sensors identifies mu_s, mu_k and the Stribeck velocity.
@@ -89,8 +86,10 @@ def test_sweep_with_the_axis_sensors_identifies_the_friction(preset, tmp_path):
     Each within the identification issue's tolerance of the truth given to
     ``simulate`` (mu_k 1 %, mu_s 2 %, Stribeck velocity 10 %), from the
     preset's start, and each 95 % interval holds the truth: the bootstrap's
-    refits (synthetic recordings with other sensor seeds) must show the
-    estimator's error that the sensors' quantisation and noise cause.
+    refits (synthetic recordings with other sensor seeds) and the
+    recording's own refits from off its fit must show the estimator's error
+    that the sensors' quantisation and noise cause (stick_slip's cost is
+    rough at 1 %: its refits stay where they start).
     """
     p0 = load_preset(preset)
     values = {n: getattr(p0, n) * f for n, f in FACTORS.items()}

@@ -87,14 +87,79 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
         problem.bootstrap[c.name] = float(s_b[i])
         if vd.identified and tq * s_b[i] > 0.5 * (vd.upper - vd.lower):   # never narrower
-            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]), bool(stalled[i]))
+            why = 'synthetic' if stalled[i] else ''
+            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]), why)
         verdicts.append(vd)
         lower.append(vd.lower)
         upper.append(vd.upper)
     values = [v if vd.identified else v0
               for v, v0, vd in zip(res.values, res.initial, verdicts)]
-    return dataclasses.replace(res, values=values, lower=lower, upper=upper,
-                               verdicts=verdicts, nfev=nfev)
+    res = dataclasses.replace(res, values=values, lower=lower, upper=upper,
+                              verdicts=verdicts, nfev=nfev)
+    return resolution(problem, res, names, start, coords, max_nfev, bounds)
+
+
+def resolution(problem, res, names, start, coords, max_nfev, bounds):
+    """
+    Widen each interval to the offset from which the recording's own refits do not come back.
+
+    Two refits of the recording itself start from every identified parameter
+    moved by its offset, max(AWAY half-widths, MIN_HALF_WIDTH of its size),
+    up and then down. A parameter they move on average by less than STALLED
+    of its offset stays where it starts: the recording's cost is flat or
+    rough at that scale (a drive loop over coarse sensors makes a stick-slip
+    recording's cost rough: its local minima lie closer together than the
+    noise's spread), and the fit cannot tell the fitted value from one that
+    far off. Its interval becomes at least value +- the offset, said to be a
+    lower bound. The synthetic recordings of :func:`bootstrap` cannot show
+    this: their fits start near their truth, the recording's from afar.
+    Returns the new FitResult. The arguments are :func:`bootstrap`'s.
+    """
+    ident_ = np.array([vd.identified for vd in res.verdicts])
+    if not np.any(ident_):
+        return res
+    offsets = np.array([max(AWAY * _half(vd, v, c, 0.0), MIN_HALF_WIDTH * max(abs(v), c.typical))
+                        if vd.identified else 0.0
+                        for c, v, vd in zip(coords, res.values, res.verdicts)])
+    starts, ends, nfev = [], [], res.nfev
+    for sign in (1.0, -1.0):
+        away = {c.name: min(c.upper, max(c.lower, v + sign * off))
+                for c, v, off in zip(coords, res.values, offsets)}
+        refit = ident.fit(problem.residuals, ident.coordinates(
+            names, ScrewParams.from_dict(away, base=start), bounds),
+            max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
+        starts.append([away[c.name] for c in coords])
+        ends.append(refit.values)
+        nfev += refit.nfev
+    stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & ident_
+    problem.resolution = {c.name: float(off) for c, off, s in zip(coords, offsets, stalled) if s}
+    verdicts = list(res.verdicts)
+    for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
+        if stalled[i] and offsets[i] > 0.5 * (vd.upper - vd.lower):
+            verdicts[i] = _widened(vd, v, c, float(offsets[i]), vd.std, 'recording')
+    values = [v if vd.identified else v0
+              for v, v0, vd in zip(res.values, res.initial, verdicts)]
+    return dataclasses.replace(res, values=values, lower=[vd.lower for vd in verdicts],
+                               upper=[vd.upper for vd in verdicts], verdicts=verdicts,
+                               nfev=nfev)
+
+
+def _half(vd, v, c, floor):
+    """Return the half-width of ``vd``'s interval, at least ``floor`` of the value's size."""
+    return max(0.5 * (vd.upper - vd.lower), floor * max(abs(v), c.typical))
+
+
+def _stalled(starts, ends, fitted):
+    """
+    Return per parameter whether refits from ``starts`` to ``ends`` stayed where they started.
+
+    starts, ends: arrays (refits, parameters); fitted: the values the starts
+    are offset from. Stalled: moved on average by less than STALLED of the
+    offset (a parameter not offset never stalls).
+    """
+    off = np.abs(starts - fitted)
+    moved = np.abs(ends - starts) / np.where(off > 0.0, off, np.inf)
+    return (np.mean(moved, axis=0) < STALLED) & np.all(off > 0.0, axis=0)
 
 
 def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
@@ -111,7 +176,7 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
     sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
     meas = problem.measurements
     recorded = (meas.data, meas.mask, problem.anchoring)
-    errors, moves, offsets, nfev = [], [], [], res.nfev
+    errors, starts, ends, nfev = [], [], [], res.nfev
     try:
         for j in range(BOOTSTRAP):
             sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
@@ -125,43 +190,42 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
             away = {}
             for i, (c, v, vd) in enumerate(zip(coords, res.values, res.verdicts)):
                 sign = (1.0, -1.0)[(j + (i if j >= 2 else 0)) % 2]
-                half = max(0.5 * (vd.upper - vd.lower), floor * max(abs(v), c.typical))
-                step = AWAY * half if vd.identified else 0.0
+                step = AWAY * _half(vd, v, c, floor) if vd.identified else 0.0
                 away[c.name] = min(c.upper, max(c.lower, v + sign * step))
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), bounds),
                 max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
             errors.append(np.array(syn.values) - np.array(res.values))
-            starts = np.array([away[c.name] for c in coords])
-            moves.append(np.array(syn.values) - starts)
-            offsets.append(starts - np.array(res.values))
+            starts.append([away[c.name] for c in coords])
+            ends.append(syn.values)
             nfev += syn.nfev
     finally:
         meas.data, meas.mask, problem.anchoring = recorded
-    off = np.abs(np.array(offsets))
-    moved = np.abs(np.array(moves)) / np.where(off > 0.0, off, np.inf)
-    stalled = (np.mean(moved, axis=0) < STALLED) & np.all(off > 0.0, axis=0)
-    return np.array(errors), stalled, nfev
+    return (np.array(errors), _stalled(np.array(starts), np.array(ends), np.array(res.values)),
+            nfev)
 
 
-def _widened(vd, v, c, hw, s_b, stalled=False):
+def _widened(vd, v, c, hw, s_b, stalled=''):
     """
     Return the verdict of value ``v`` of coordinate ``c`` with the half-width ``hw``.
 
-    ``stalled``: the refits stayed where they started for this parameter, so
-    ``hw`` is about the width of those starts, a lower bound of the
-    interval, not a spread.
+    ``stalled``: '' when ``hw`` is the refits' spread; 'synthetic' when the
+    refits of the synthetic recordings stayed where they started for this
+    parameter, 'recording' when the recording's own did: ``hw`` is then
+    about the offset of those starts, a lower bound of the interval, not a
+    spread.
     """
     lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
     rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
-    ok = rel <= REL_MAX
+    ok = bool(rel <= REL_MAX)
     if stalled:
-        why = (f'identified: 95 % interval +-{100 * rel:.3g} % or wider (refits of '
-               f'{BOOTSTRAP} synthetic recordings started that far off stayed there: the '
-               'signals are flat there at their resolution)' if ok else
-               f'not identifiable: refits of {BOOTSTRAP} synthetic recordings started '
-               f'+-{100 * rel:.3g} % off stayed there: the signals are flat there at their '
-               'resolution')
+        refits = (f'refits of {BOOTSTRAP} synthetic recordings' if stalled == 'synthetic' else
+                  'refits of the recording')
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % or wider ({refits} started '
+               'that far off stayed there: the signals are flat or rough there at their '
+               'resolution)' if ok else
+               f'not identifiable: {refits} started +-{100 * rel:.3g} % off stayed there: '
+               'the signals are flat or rough there at their resolution')
     elif ok:
         why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
                'refits of synthetic recordings)')
