@@ -156,6 +156,11 @@ def _errors(res, true, digits=2):
                      for n, v, vd in zip(res.names, res.values, res.verdicts))
 
 
+def _half_width(vd):
+    """Return the 95 % half-width [%] of a verdict, 'or wider' where it is a lower bound."""
+    return f'{100 * vd.rel:.3g} %' + (' or wider' if 'or wider' in vd.reason else '')
+
+
 def profiles(names):
     """Print the errors and verdicts of 4-parameter fits of ``simulate --excite`` recordings."""
     true, sets = T.truth('tr12x3')
@@ -253,7 +258,7 @@ def quantised(presets, seeds=1, names=('sweep', 'breakaway')):
                 print(f'{preset:>10} {name:>9} seed {7 + 4 * seed}: {out["problem"].slow} '
                       f'steps left out, {wall:.1f} s wall; '
                       f'{_errors(out["res"], true, digits=3)}; 95 % half-widths '
-                      f'{", ".join(f"{100 * vd.rel:.3g} %" for vd in out["res"].verdicts)}',
+                      f'{", ".join(_half_width(vd) for vd in out["res"].verdicts)}',
                       flush=True)
 
 
