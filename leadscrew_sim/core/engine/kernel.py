@@ -115,7 +115,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
       stepper, stc: the motor is a stepper, its constants (stepper.stepper_constants);
         ia, ib [A], s_pos [rad], s_rate [rad/s], s_k, s_idle [s], ca, sa, i_amp [A]:
         its phase currents, step generator, microstep, standstill time, set point
-        direction and current amplitude;  s_lo, s_hi: its rate bounds [rad/s]
+        direction and current amplitude;  s_lo, s_hi: its rate bounds [rad/s];
+        se, ce, wm_p [rad/s]: sin and cos of the rotor's electrical angle in the
+        last substep and that substep's starting motor rate (nan: none yet this step)
       ct: the substep's contact forces (stages.smooth_forces); flo_a, fup_a,
         flo_b, fup_b: its flank forces [N];  imp_*, mode_*: friction impulses
         and stick/slip modes (stages.friction_impulses);  faprev: axial thread
@@ -195,6 +197,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
          mode_a, mode_b, mode_c, mode_g, nsearch) = load_state(S)
         ia, ib, s_pos, s_rate, s_k, s_idle = load_stepper(S)
         ca = sa = i_amp = 0.0
+        se = ce = 0.0
+        wm_p = math.nan   # the first substep computes sin and cos of its angle exactly
         s_lo = s_hi = 0.0
         if stepper:   # no torque: the generator's rate bounds, 0 toward a tripped switch
             t_sat = d_tout = 0.0
@@ -226,10 +230,12 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 t_sat = d_tout
             for _ in range(seg):
                 if stepper:
-                    (te_new, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs,
-                     i_amp) = stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa,
-                                              d_mode, d_qref, d_qs, c_w, s_lo, s_hi,
-                                              d_fault == FAULT_NONE, t_scale, stc)
+                    (te_new, se, ce, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref,
+                     d_qs, i_amp) = stepper_substep(qm, wm, wm_p, se, ce, ia, ib, s_pos, s_rate,
+                                                    s_k, s_idle, ca, sa, d_mode, d_qref, d_qs,
+                                                    c_w, s_lo, s_hi, d_fault == FAULT_NONE,
+                                                    t_scale, stc)
+                    wm_p = wm
                 else:
                     te_new = te + alpha * (t_scale * t_sat - te)
                 f_m, f_s, f_a, f_b, ct = smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new,

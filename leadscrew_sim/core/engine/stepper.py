@@ -50,17 +50,20 @@ def stepper_constants(P, h):
     """
     Return stc, the stepper's constants for substeps of h [s].
 
-    stc = (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax,
-    acc, b_rot, h, tau_f, tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki,
-    inv_tau_f, inv_tau_s, c_us, s_us): rotor teeth [-]; microstep angle [rad];
-    the motor angle of microstep 0 [rad]; K_m [N m/A]; run and hold current
-    [A]; hold delay [s]; R [ohm]; K_i [V/A]; supply voltage [V]; detent torque
-    [N m]; largest rate [rad/s] and acceleration [rad/s^2] of the step
-    generator; rotor damping [N m s/rad]; the substep [s]; the current's time
-    constants with the loop closed, L / (R + K_i), and with the voltage
-    clipped, L / R [s], and their decay factors over a substep; 1 / (R +
-    K_i) [A/V], K_i / (R + K_i) [-], 1 / R and 1 / K_i [A/V], 1 / tau_f and 1 /
-    tau_s [1/s]; cos and sin of a microstep's electrical angle.
+    stc = (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax, acc, b_rot,
+    h, tau_f, tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s,
+    c_us, s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf): rotor teeth [-]; microstep
+    angle [rad]; the motor angle of microstep 0 [rad]; K_m [N m/A]; run and hold current
+    [A]; hold delay [s]; R [ohm]; K_i [V/A]; supply voltage [V]; detent torque [N m];
+    largest rate [rad/s] and acceleration [rad/s^2] of the step generator; rotor damping
+    [N m s/rad]; the substep [s]; the current's time constants with the loop closed, L /
+    (R + K_i), and with the voltage clipped, L / R [s], and their decay factors over a
+    substep; 1 / (R + K_i) [A/V], K_i / (R + K_i) [-], 1 / R and 1 / K_i [A/V], 1 /
+    tau_f and 1 / tau_s [1/s]; cos and sin of a microstep's electrical angle; 1.5 N_r h
+    and 0.5 N_r h [s] (the electrical angle's advance over a substep is nh_1 w_m - nh_2
+    w_m of the last substep); tau_s / tau_f and h / tau_f [-]; 1 - e_fast [-] and (1 -
+    e_fast) / (R + K_i) [A/V] (the linear zone's decay written as i e_fast + i* g_fast +
+    emf g_emf).
     """
     r = P[P_RPH]
     ki = P[P_KI]
@@ -71,7 +74,9 @@ def stepper_constants(P, h):
             P[P_VSUP], P[P_TDET], P[P_SWMAX], P[P_SACC], P[P_BROT], h, tau_f, tau_s,
             math.exp(-h / tau_f), math.exp(-h / tau_s), 1.0 / (r + ki), ki / (r + ki), 1.0 / r,
             1.0 / ki, 1.0 / tau_f, 1.0 / tau_s, math.cos(P[P_NR] * P[P_USTEP]),
-            math.sin(P[P_NR] * P[P_USTEP]))
+            math.sin(P[P_NR] * P[P_USTEP]), 1.5 * (P[P_NR] * h), 0.5 * (P[P_NR] * h),
+            tau_s / tau_f, h / tau_f, 1.0 - math.exp(-h / tau_f),
+            (1.0 - math.exp(-h / tau_f)) / (r + ki))
 
 
 @kernel_jit
@@ -197,9 +202,11 @@ def _phase(i, i_set, emf, stc):
     Return a phase current [A] after a substep of the averaged chopper: :func:`_phase_pieces`.
 
     Inlined: the common substep, whose current stays in the zone it starts in
-    (its target lies there), is one exponential decay; only a substep that
-    crosses the edge of the linear zone calls :func:`_phase_pieces`. stc:
-    stepper_constants.
+    (its target lies there), is one exponential decay; so is the substep that
+    starts clipped and crosses into the linear zone, whose target lies there
+    (the two pieces of :func:`_phase_pieces` in closed form: a log and an exp).
+    Only the other substeps that cross the edge of the linear zone call
+    :func:`_phase_pieces`. stc: stepper_constants.
     """
     r = stc[7]
     ki = stc[8]
@@ -208,16 +215,32 @@ def _phase(i, i_set, emf, stc):
     u = ri + ki * (i_set - i)
     if -v <= u <= v:
         if -v <= ri - stc[20] * emf <= v:        # the voltage at the target
-            target = i_set + emf * stc[19]
-            return target + (i - target) * stc[17]
-    elif u > 0.0:
+            # target + (i - target) e_fast, target = i_set + emf / (R + K_i)
+            return (i * stc[17] + i_set * stc[31]) + emf * stc[32]
+        return _phase_pieces(i, i_set, emf, stc)
+    if u > 0.0:
         target = (v + emf) * stc[21]
         if ri + ki * (i_set - target) >= v:
             return target + (i - target) * stc[18]
+        edge = i_set + (ri - v) * stc[22]
+        beyond = target > edge
     else:
         target = (emf - v) * stc[21]
         if ri + ki * (i_set - target) <= -v:
             return target + (i - target) * stc[18]
+        edge = i_set + (ri + v) * stc[22]
+        beyond = target < edge
+    # clipped, toward a target beyond the edge of the linear zone, whose own target lies in
+    # it: the two pieces of _phase_pieces, the second's decay exp(-(h - t_c) / tau_f) with
+    # the crossing time t_c = tau_s ln(ratio) written as exp(ln(ratio) tau_s / tau_f - h /
+    # tau_f)
+    t_f = i_set + emf * stc[19]
+    if (beyond and (edge - target) * (i - target) > 0.0
+            and i_set + (ri - v) * stc[22] <= t_f <= i_set + (ri + v) * stc[22]):
+        ratio = (i - target) / (edge - target)
+        lr = math.log(ratio) if ratio > 1.0 else 0.0
+        if lr * stc[16] < stc[14]:
+            return t_f + (edge - t_f) * math.exp(lr * stc[29] - stc[30])
     return _phase_pieces(i, i_set, emf, stc)
 
 
@@ -232,12 +255,16 @@ def _open(i, emf, r, v, e_slow):
 
 
 @inline_jit
-def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs,
-                    c_w, s_lo, s_hi, enabled, t_scale, stc):
+def stepper_substep(qm, wm, wm_p, se, ce, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode,
+                    d_qref, d_qs, c_w, s_lo, s_hi, enabled, t_scale, stc):
     """
     Run the stepper's driver and motor for one substep; return the motor torque and state.
 
-    qm [rad], wm [rad/s]: rotor angle and rate at the substep's start; ia, ib
+    qm [rad], wm [rad/s]: rotor angle and rate at the substep's start; wm_p
+    [rad/s], se, ce: the rate at the last substep's start and the sin and cos
+    of the electrical angle it used (wm_p nan: none, at a step's first
+    substep; the angle then is computed exactly, else rotated from theirs by
+    the small angle qm moved since, see the body); ia, ib
     [A]: phase currents; s_pos [rad], s_rate [rad/s], s_k, s_idle [s]: step
     generator position and rate, microstep index, standstill time; ca, sa:
     cos and sin of the commanded electrical angle (of s_k: a single microstep
@@ -249,15 +276,17 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
     the generator stands); t_scale: share of the electromagnetic torque a
     weakened motor delivers; stc: stepper_constants.
 
-    Returns (te [N m], ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode,
-    d_qref, d_qs, i_amp [A]): te = t_scale K_m (-i_a sin theta_e + i_b cos
+    Returns (te [N m], se, ce, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa,
+    d_mode, d_qref, d_qs, i_amp [A]): se, ce the sin and cos of this
+    substep's electrical angle; te = t_scale K_m (-i_a sin theta_e + i_b cos
     theta_e) - T_d sin(4 theta_e) - B w_m with the currents at the substep's
     end; a quick stop at rest becomes a position hold there; i_amp is the
     current amplitude set (0 disabled).
     """
     (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax, acc, b_rot, h, tau_f,
      tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s, c_us,
-     s_us) = stc
+     s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf) = stc
+    kt = t_scale * km
     s_mid = s_pos
     if enabled:
         s_pos, s_rate, stopped = step_generator(s_pos, s_rate, d_mode, d_qref, c_w, s_lo,
@@ -283,9 +312,25 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
         s_k = k
     else:
         s_idle += h
-    th_e = nr * (qm + 0.5 * h * wm - q0)
-    s = math.sin(th_e)
-    c = math.cos(th_e)
+    # sin and cos of theta_e = N_r (q_m + h w_m / 2 - q_0): rotated from the last substep's
+    # (se, ce at the rate wm_p; qm advanced by h wm since) by the small angle
+    # d = N_r h (1.5 w_m - 0.5 w_p) (Taylor polynomials), exactly at a step's first substep
+    # (wm_p nan) or after a large angle
+    d = nh_1 * wm - nh_2 * wm_p
+    if abs(d) <= 0.125:
+        z = d * d
+        z2 = z * z
+        sd = d + (d * z) * ((-0.16666666666666666 + z * 0.008333333333333333)
+                            + z2 * (-0.0001984126984126984 + z * 2.7557319223985893e-06))
+        cd = 1.0 + z * ((-0.5 + z * 0.041666666666666664)
+                        + z2 * ((-0.001388888888888889 + z * 2.48015873015873e-05)
+                                + z2 * -2.755731922398589e-07))
+        s = se * cd + ce * sd
+        c = ce * cd - se * sd
+    else:
+        th_e = nr * (qm + 0.5 * h * wm - q0)
+        s = math.sin(th_e)
+        c = math.cos(th_e)
     emf_a = km * wm * s
     emf_b = -km * wm * c
     if enabled:
@@ -296,9 +341,8 @@ def stepper_substep(qm, wm, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, 
         i_amp = 0.0
         ia = _open(ia, emf_a, r, v, e_slow)
         ib = _open(ib, emf_b, r, v, e_slow)
-    te = (t_scale * (km * (ib * c - ia * s)) - t_det * (4.0 * s * c * (c * c - s * s))
-          - b_rot * wm)
-    return te, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs, i_amp
+    te = kt * (ib * c - ia * s) - (t_det * (4.0 * s * c * (c * c - s * s)) + b_rot * wm)
+    return te, s, c, ia, ib, s_pos, s_rate, s_k, s_idle, ca, sa, d_mode, d_qref, d_qs, i_amp
 
 
 @kernel_jit
