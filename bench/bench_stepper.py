@@ -5,8 +5,10 @@ Run: .venv/bin/python bench/bench_stepper.py [--seconds 4] [--repeats 7]
 
 Each stepper preset runs beside the servo preset of its mechanics
 (nema17_tr8x8 beside tr8x8, nema23_tr12x3 beside tr12x3) on the same position
-commands (the nut along x0 + 10 mm sin(2 pi 0.5 Hz t), 1 kHz command rows, one
-compiled model.run call per repeat), and holding still. Prints per pair the
+commands (the nut along x0 + 10 mm sin(2 pi 0.5 Hz t), beyond the steppers'
+top step rate, so they run at it; 'half': the sine whose top speed is half
+that rate's; 1 kHz command rows, one compiled model.run call per repeat),
+and holding still. Prints per pair the
 substeps per step, the wall time per simulated ms (best of the repeats, the
 runs of a pair interleaved) and the ratio stepper / servo.
 """
@@ -33,6 +35,15 @@ def rows(p, n, amplitude):
     return out
 
 
+def half_rate_amplitude(p):
+    """Return the amplitude [m] of the 0.5 Hz sine whose top speed is half the top step rate's."""
+    m = LeadScrewModel(p)
+    x0 = p.initial_position
+    rad_per_m = (m.nut_to_motor(x0 + 1e-4) - m.nut_to_motor(x0)) / 1e-4
+    top = p.max_step_rate * p.step_angle / abs(rad_per_m)       # nut speed [m/s]
+    return 0.5 * top / math.pi
+
+
 def timed(p, cmds):
     """Return (wall seconds of one model.run over cmds, substeps per step)."""
     m = LeadScrewModel(p)
@@ -52,7 +63,7 @@ def main():
           f'{"stepper us/ms":>14} {"ratio":>6}')
     for stepper, servo in PAIRS:
         ps, pv = load_preset(stepper), load_preset(servo)
-        for drive, amp in (('move', 0.01), ('hold', 0.0)):
+        for drive, amp in (('move', 0.01), ('half', half_rate_amplitude(ps)), ('hold', 0.0)):
             cs, cv = rows(ps, n, amp), rows(pv, n, amp)
             timed(ps, cs[:10])
             timed(pv, cv[:10])
