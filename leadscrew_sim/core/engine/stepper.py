@@ -52,7 +52,7 @@ def stepper_constants(P, h):
 
     stc = (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax, acc, b_rot,
     h, tau_f, tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s,
-    c_us, s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf): rotor teeth [-]; microstep
+    c_us, s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf, inv_us): rotor teeth [-]; microstep
     angle [rad]; the motor angle of microstep 0 [rad]; K_m [N m/A]; run and hold current
     [A]; hold delay [s]; R [ohm]; K_i [V/A]; supply voltage [V]; detent torque [N m];
     largest rate [rad/s] and acceleration [rad/s^2] of the step generator; rotor damping
@@ -63,7 +63,7 @@ def stepper_constants(P, h):
     and 0.5 N_r h [s] (the electrical angle's advance over a substep is nh_1 w_m - nh_2
     w_m of the last substep); tau_s / tau_f and h / tau_f [-]; 1 - e_fast [-] and (1 -
     e_fast) / (R + K_i) [A/V] (the linear zone's decay written as i e_fast + i* g_fast +
-    emf g_emf).
+    emf g_emf); 1 / the microstep angle [1/rad].
     """
     r = P[P_RPH]
     ki = P[P_KI]
@@ -76,7 +76,7 @@ def stepper_constants(P, h):
             1.0 / ki, 1.0 / tau_f, 1.0 / tau_s, math.cos(P[P_NR] * P[P_USTEP]),
             math.sin(P[P_NR] * P[P_USTEP]), 1.5 * (P[P_NR] * h), 0.5 * (P[P_NR] * h),
             tau_s / tau_f, h / tau_f, 1.0 - math.exp(-h / tau_f),
-            (1.0 - math.exp(-h / tau_f)) / (r + ki))
+            (1.0 - math.exp(-h / tau_f)) / (r + ki), 1.0 / P[P_USTEP])
 
 
 @kernel_jit
@@ -285,7 +285,7 @@ def stepper_substep(qm, wm, wm_p, se, ce, ia, ib, s_pos, s_rate, s_k, s_idle, ca
     """
     (nr, ustep, q0, km, i_run, i_hold, t_hold, r, ki, v, t_det, wmax, acc, b_rot, h, tau_f,
      tau_s, e_fast, e_slow, inv_rk, ki_rk, inv_r, inv_ki, inv_tau_f, inv_tau_s, c_us,
-     s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf) = stc
+     s_us, nh_1, nh_2, tau_sf, h_f, g_fast, g_emf, inv_us) = stc
     kt = t_scale * km
     s_mid = s_pos
     if enabled:
@@ -300,7 +300,7 @@ def stepper_substep(qm, wm, wm_p, se, ce, ia, ib, s_pos, s_rate, s_k, s_idle, ca
     else:
         s_rate = 0.0
     # the microstep and the rotor's electrical angle at the substep's middle
-    k = float(math.floor((s_mid - q0) / ustep + 0.5))
+    k = float(math.floor((s_mid - q0) * inv_us + 0.5))
     if k != s_k:
         s_idle = 0.0
         if k == s_k + 1.0:      # one microstep: rotate the direction (exact again each step)
