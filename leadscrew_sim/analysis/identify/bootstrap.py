@@ -5,7 +5,9 @@ The Jacobian's interval assumes residuals that are the sensor noise alone;
 quantisation of a slow signal and a drive loop's response to its noisy
 sensors break that. :func:`bootstrap` re-simulates the fit as the truth with
 the recorded sensor model, refits each synthetic recording, and widens every
-interval to the spread of those refits.
+interval to the spread of those refits; :func:`resolution` then refits the
+recording itself from off its fit and widens the interval of a parameter
+those refits cannot bring back (a rough or flat cost) to their offset.
 """
 import dataclasses
 
@@ -115,8 +117,8 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
     this: their fits start near their truth, the recording's from afar.
     Returns the new FitResult. The arguments are :func:`bootstrap`'s.
     """
-    ident_ = np.array([vd.identified for vd in res.verdicts])
-    if not np.any(ident_):
+    identified = np.array([vd.identified for vd in res.verdicts])
+    if not np.any(identified):
         return res
     offsets = np.array([max(AWAY * _half(vd, v, c, 0.0), MIN_HALF_WIDTH * max(abs(v), c.typical))
                         if vd.identified else 0.0
@@ -131,7 +133,7 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
         starts.append([away[c.name] for c in coords])
         ends.append(refit.values)
         nfev += refit.nfev
-    stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & ident_
+    stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & identified
     problem.resolution = {c.name: float(off) for c, off, s in zip(coords, offsets, stalled) if s}
     verdicts = list(res.verdicts)
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
