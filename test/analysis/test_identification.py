@@ -234,9 +234,9 @@ def test_the_recordings_refits_bound_the_interval_of_a_rough_cost(ripple):
     delta = 0.087. A refit from 1.2e-3 (1 %) off lands on that spurious zero
     9 % of its offset from its start (it stays), and so does one from
     -1.2e-3: the interval must be at least +-1 % and say it is a lower
-    bound. Without the ripple the cost is a
-    parabola, the refits come back to the minimum, and the interval stays the
-    Jacobian's: 1.96 x 1e-4 / sqrt(400) / 0.12 = 0.0082 % (widened by nothing).
+    bound. Without the ripple the cost is a parabola, the refits come back to
+    the minimum, and the interval stays the Jacobian's: 1.96 x 1e-4 /
+    sqrt(400) / 0.12 = 0.0082 % (widened by nothing).
     """
     from leadscrew_sim.analysis.identify.bootstrap import resolution
     start = load_preset('tr12x3', mu_k=0.12)
