@@ -45,7 +45,7 @@ import time
 import numpy as np
 
 from leadscrew_sim import cli, LeadScrewModel
-from leadscrew_sim.offline.identify import fit_recording
+from leadscrew_sim.offline.identify.run import fit_recording
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / 'test'))

@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from leadscrew_sim import cli, LeadScrewModel, load_preset
-from leadscrew_sim.offline.simulate import BLOCK_TICKS
+from leadscrew_sim.offline.simulate.run import BLOCK_TICKS
 from leadscrew_sim.core.commands import CommandHold, NutMap
 from leadscrew_sim.analysis.excitation.profiles import make_profile
 

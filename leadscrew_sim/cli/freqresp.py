@@ -2,9 +2,9 @@
 The ``freqresp`` verb: the axis's frequency response (Bode plot) from three sources.
 
 Parses the flags (doc/frequency_response.md) and calls
-:func:`leadscrew_sim.offline.freqresp.freqresp_run`; prints its summary.
+:func:`leadscrew_sim.offline.freqresp.run.freqresp_run`; prints its summary.
 """
-from ..offline.freqresp import freqresp_run
+from ..offline.freqresp.run import freqresp_run
 
 HELP = ('frequency response: linear model, simulated sine dwell / chirp / multisine, or a '
         'recording (CSV, Bode PNG, margins)')

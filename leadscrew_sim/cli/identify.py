@@ -1,16 +1,16 @@
 """
 ``identify``: fit parameters so that re-simulating a recording's commands gives its states.
 
-The fit is :func:`leadscrew_sim.offline.identify.fit_recording`; this verb
+The fit is :func:`leadscrew_sim.offline.identify.run.fit_recording`; this verb
 parses its options, prints the report (:mod:`.identify_report`) and has the
 report, the parameter file and the plot written.
 """
 from .args import add_deprecated_alias
 from .identify_report import report
 from ..analysis.identify import fit as ident
-from ..offline.identify import fit_recording
-from ..offline.identify_output import write_outputs
-from ..offline.identify_progress import FitProgress
+from ..offline.identify.run import fit_recording
+from ..offline.identify.output import write_outputs
+from ..offline.identify.progress import FitProgress
 from ..offline.options import keep_freed_memory
 
 HELP = 'fit friction, backlash and other parameters to a recording'

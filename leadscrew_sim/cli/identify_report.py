@@ -25,7 +25,7 @@ def report(path, out):
     path : str
         The recording.
     out : dict
-        What :func:`leadscrew_sim.offline.identify.fit_recording` returned.
+        What :func:`leadscrew_sim.offline.identify.run.fit_recording` returned.
 
     """
     problem, res = out['problem'], out['res']

@@ -4,7 +4,7 @@ import os
 import numpy as np
 
 from ..offline.options import NS, open_recording, Progress, RunError
-from ..offline.replay import Resim
+from ..offline.replay.resim import Resim
 from ..io import cdr as C, messages as M
 from ..io.run_file import PARAMS_RECORD, params_from_record
 from ..offline.run_events import EventLog, recorded_events

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 
 from ..offline.options import NS, open_recording, Progress, RunError
-from ..offline.replay import Resim
+from ..offline.replay.resim import Resim
 from ..io import cdr as C, messages as M
 
 HELP = 'four-panel PNG of a leadscrew_sim recording'

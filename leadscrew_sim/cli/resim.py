@@ -1,7 +1,7 @@
 """
 ``resim``: re-run the commands of a recording through the model and compare the states.
 
-The re-simulation is :class:`leadscrew_sim.offline.replay.Resim`: the node's
+The re-simulation is :class:`leadscrew_sim.offline.replay.resim.Resim`: the node's
 command rules, the model in blocks. The comparison decodes the recorded
 states of each topic at once where their layout is the encoder's.
 """
@@ -15,7 +15,7 @@ from .args import add_compression_argument
 from .event_lines import print_events
 from ..offline.options import (compression_of, gc_paused, open_recording, parse_sets,
                                Progress, RunError)
-from ..offline.replay import Resim
+from ..offline.replay.resim import Resim
 from ..offline.run_events import EventLog
 from ..core.params import ScrewParams
 from ..io import cdr as C, messages as M

@@ -1,7 +1,7 @@
 """
 ``simulate``: run the model without ROS and write an MCAP file in the node's recording layout.
 
-The run is :func:`leadscrew_sim.offline.simulate.simulate`; this verb parses
+The run is :func:`leadscrew_sim.offline.simulate.run.simulate`; this verb parses
 its options and prints what it wrote.
 """
 import sys
@@ -10,7 +10,7 @@ from .args import add_compression_argument, add_deprecated_alias, PROG
 from .event_lines import print_events
 from ..analysis.excitation.profiles import PROFILES
 from ..offline.options import DEFAULT_PRESET
-from ..offline.simulate import simulate
+from ..offline.simulate.run import simulate
 
 HELP = 'run the model offline and write an MCAP file'
 

@@ -142,7 +142,7 @@ def fitted(tmp_path_factory, preset, mode, *options):
     if key not in _FITS:
         rec = recording(tmp_path_factory, preset, mode)
         main = importlib.import_module('leadscrew_sim.cli.main')
-        from leadscrew_sim.offline.identify import fit_recording
+        from leadscrew_sim.offline.identify.run import fit_recording
         args = main.build_parser().parse_args(['identify', str(rec), '--preset', preset,
                                                '--fit', FIT, *options])
         _FITS[key] = (rec, fit_recording(args))
@@ -197,7 +197,7 @@ def test_a_second_attempt_leaves_the_wrong_basin_of_a_short_horizon(tmp_path, mo
     cli_ok('simulate', '--preset', 'anti_backlash', *opts, '--duration', duration, *sets,
            '-q', '-o', rec)
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     from leadscrew_sim.cli.identify_report import report
     args = main.build_parser().parse_args(['identify', str(rec), '--preset', 'anti_backlash',
                                            '--fit', FIT])
@@ -289,7 +289,7 @@ def test_a_foreign_recording_by_its_topics(tmp_path_factory):
     """A file read as another source's: states and commands by topic, noise from the data."""
     rec, _out = fitted(tmp_path_factory, 'tr12x3', 'torque')
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     args = main.build_parser().parse_args([
         'identify', str(rec), '--preset', 'tr12x3', '--fit', 'mu_s,mu_k,stribeck_velocity',
         '--state-topic', '/joint_states', '--command-topic', '/torque_command',
@@ -376,7 +376,7 @@ def test_slow_plateaus_are_left_out(tmp_path):
     cli_ok('simulate', '--preset', 'tr12x3', '--velocity-csv', tmp_path / 'velocity.csv',
            '--force-csv', tmp_path / 'force.csv', '--duration', t, *sets, '-q', '-o', rec)
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     out = fit_recording(main.build_parser().parse_args(['identify', str(rec), '--preset',
                                                         'tr12x3', '--fit', FIT]))
     quantum = 2 * math.pi / p.encoder_counts * p.drive_rate * p.lead / (2 * math.pi)

@@ -64,7 +64,7 @@ def fitted(tmp_path_factory):
     cli_ok('simulate', '--preset', 'tr12x3', *opts, '--duration', duration, *sets, '-q',
            '-o', rec)
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     args = main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3'])
     return rec, fit_recording(args)
 

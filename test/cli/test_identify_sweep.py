@@ -20,7 +20,7 @@ FIT = 'mu_s,mu_k,stribeck_velocity'
 def _identify(rec, *options):
     """Return fit_recording's result of ``identify rec --fit FIT options``, in process."""
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     return fit_recording(main.build_parser().parse_args(['identify', str(rec), '--fit', FIT,
                                                          *options]))
 

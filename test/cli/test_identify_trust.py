@@ -16,7 +16,7 @@ import io
 from helpers import cli_ok
 from leadscrew_sim import load_preset
 from leadscrew_sim.io.mcap_reader import Recording
-from leadscrew_sim.offline.identify_progress import FitProgress
+from leadscrew_sim.offline.identify.progress import FitProgress
 import numpy as np
 import pytest
 import yaml
@@ -141,7 +141,7 @@ def degenerate(tmp_path_factory):
     (tmp / 'band.csv').write_text(''.join(f'{float(a)!r},{float(b)!r}\n'
                                           for a, b in zip(t, torque)))
     main = importlib.import_module('leadscrew_sim.cli.main')
-    from leadscrew_sim.offline.identify import fit_recording
+    from leadscrew_sim.offline.identify.run import fit_recording
     out = {}
     for case, (preset, inputs, fit, _why) in DEGENERATE.items():
         inputs = [str(tmp / a) if str(a).endswith('.csv') else a for a in inputs]

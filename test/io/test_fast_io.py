@@ -23,7 +23,7 @@ import pytest
 import helpers
 from helpers import SHARED
 from leadscrew_sim.cli import main as cli_main
-from leadscrew_sim.offline.sources import Held, make_torque_source
+from leadscrew_sim.offline.simulate.sources import Held, make_torque_source
 from leadscrew_sim.core.commands import CommandHold, NutMap
 from leadscrew_sim.io import cdr as C
 from leadscrew_sim.io.mcap_reader import Recording

@@ -6,7 +6,7 @@ the order they were added, and the events' own tuples.
 """
 import numpy as np
 
-from leadscrew_sim.offline.replay_events import RecordedEvents
+from leadscrew_sim.offline.replay.events import RecordedEvents
 
 
 def _float_rows(values):

@@ -24,7 +24,7 @@ from helpers import cli_ok, REPO
 from leadscrew_sim import load_preset
 from leadscrew_sim.analysis.freqresp.measure import simulated_response
 from leadscrew_sim.core.params import ScrewParams
-from leadscrew_sim.offline.freqresp_recording import recording_response, RecordingOptions
+from leadscrew_sim.offline.freqresp.recording import recording_response, RecordingOptions
 from leadscrew_sim.offline.options import RunError
 import numpy as np
 import pytest

@@ -13,16 +13,16 @@ import math
 
 import numpy as np
 
-from .options import NS, RunError, simulation_faults
-from .replay_events import RecordedEvents
-from .replay_inputs import CommandPass, MODEL_EVENTS, Segment
-from ..core.delivery import StateDelivery
-from ..core.params import ParameterError, ScrewParams
-from ..io import messages as M, topics as T
-from ..io.record_fill import Stamps
-from ..io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
-                           run_setting, UPDATE_RECORD)
-from ..io.tick_writer import Events, Stream, write_block
+from ..options import NS, RunError, simulation_faults
+from .events import RecordedEvents
+from .inputs import CommandPass, MODEL_EVENTS, Segment
+from ...core.delivery import StateDelivery
+from ...core.params import ParameterError, ScrewParams
+from ...io import messages as M, topics as T
+from ...io.record_fill import Stamps
+from ...io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
+                            run_setting, UPDATE_RECORD)
+from ...io.tick_writer import Events, Stream, write_block
 
 #: Steps per part of a segment when writing: the model runs a part while the writer's
 #: thread compresses the one before.
@@ -198,7 +198,7 @@ class Resim:
     # ------------------------------------------------------------- the model
     def model(self, overrides=None):
         """Return a new model with the recorded parameters and ``overrides`` (names: values)."""
-        from ..core.model import LeadScrewModel
+        from ...core.model import LeadScrewModel
         params = ScrewParams.from_dict(overrides, base=self.params) if overrides else self.params
         return LeadScrewModel(params, dt=self.dt_ns / NS)
 

@@ -12,9 +12,9 @@ while ``fault.drive_fault`` is true), and is recorded as the node records it.
 """
 import math
 
-from .options import parse_scalar, RunError
-from ..core.fields import field_name
-from ..core.params import ParameterError, ScrewParams
+from ..options import parse_scalar, RunError
+from ...core.fields import field_name
+from ...core.params import ParameterError, ScrewParams
 
 #: The key of a schedule's changes that clears a latched drive fault (``~/clear_fault``).
 CLEAR_FAULT = 'clear_fault'

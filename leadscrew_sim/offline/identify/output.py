@@ -7,10 +7,10 @@ import re
 
 import numpy as np
 
-from .options import RunError
-from ..core import yamlio
-from ..core.params import ScrewParams
-from ..core.presets import preset_names
+from ..options import RunError
+from ...core import yamlio
+from ...core.params import ScrewParams
+from ...core.presets import preset_names
 
 
 def write_outputs(args, out, text):
@@ -22,7 +22,7 @@ def write_outputs(args, out, text):
     args : argparse.Namespace
         The options (``report``, ``output_params``, ``plot``: a path or None).
     out : dict
-        What :func:`leadscrew_sim.offline.identify.fit_recording` returned.
+        What :func:`leadscrew_sim.offline.identify.run.fit_recording` returned.
     text : str
         The report.
 
@@ -120,7 +120,7 @@ def plot(path, problem, initial, final):
     ----------
     path : str
         The PNG file.
-    problem : leadscrew_sim.offline.identify_problem.Problem
+    problem : leadscrew_sim.offline.identify.problem.Problem
         The recording set up for the fit.
     initial, final : dict
         The re-simulated columns with the starting and the fitted values.

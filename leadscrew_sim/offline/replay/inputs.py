@@ -1,18 +1,18 @@
 """
 The pass of a recording's events through the node's CommandHold: the drive command of each step.
 
-:meth:`leadscrew_sim.offline.replay.Resim.inputs` runs it once. Runs of one
+:meth:`leadscrew_sim.offline.replay.resim.Resim.inputs` runs it once. Runs of one
 std_msgs/Float64 drive command per step with no timeout, delay or loss are
 taken in one vectorised go, with the same doubles CommandHold forms; all
 else goes event by event, step by step, through CommandHold itself.
 """
 import numpy as np
 
-from .options import NS, RunError
-from ..core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
-from ..core.params import ParameterError, ScrewParams
-from ..io import cdr as C
-from ..io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD, run_setting, UPDATE_RECORD
+from ..options import NS, RunError
+from ...core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
+from ...core.params import ParameterError, ScrewParams
+from ...io import cdr as C
+from ...io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD, run_setting, UPDATE_RECORD
 
 #: The recorded events that act on the model itself; a stretch of one compiled call ends there.
 MODEL_EVENTS = (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD)
@@ -41,7 +41,7 @@ class CommandPass:
 
     def __init__(self, sim):
         """Start with the recorded parameters and run settings of ``sim``."""
-        from ..core.model import LeadScrewModel
+        from ...core.model import LeadScrewModel
         self.sim = sim
         self.model = LeadScrewModel(sim.params, dt=sim.dt_ns / NS)   # stepped never
         timeout = sim.timeout if sim.clock_mode != 'realtime' else 0.0

@@ -17,21 +17,21 @@ import time
 
 import numpy as np
 
-from .options import (compression_of, gc_paused, load_params, NS, parse_sets, Progress,
-                      RunError, simulation_faults)
+from ..options import (compression_of, gc_paused, load_params, NS, parse_sets, Progress,
+                       RunError, simulation_faults)
 from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
-from .run_events import EventLog
+from ..run_events import EventLog
 from .schedule import CLEAR_FAULT, read_schedule
-from ..core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
-from ..core.delivery import StateDelivery
-from ..core.drive_modes import FAULT_NONE
-from ..core.fields import public_name
-from ..core.params import ScrewParams
-from ..io import cdr as C, messages as M
-from ..io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, parameters_record,
-                           RunWriter, UPDATE_RECORD)
-from ..io.record_fill import Stamps
-from ..io.tick_writer import Events, Stream, write_block
+from ...core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
+from ...core.delivery import StateDelivery
+from ...core.drive_modes import FAULT_NONE
+from ...core.fields import public_name
+from ...core.params import ScrewParams
+from ...io import cdr as C, messages as M
+from ...io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, parameters_record,
+                            RunWriter, UPDATE_RECORD)
+from ...io.record_fill import Stamps
+from ...io.tick_writer import Events, Stream, write_block
 
 #: Ticks per block: the model runs a block in one compiled call (open-loop
 #: inputs) and the block's messages are encoded and recorded at once.
@@ -89,7 +89,7 @@ def simulate(args, warn):
 
 def _simulate(args, warn):
     """Set the run up from ``args``, run it and return its :class:`SimulatedRun`."""
-    from ..core.model import LeadScrewModel
+    from ...core.model import LeadScrewModel
     phys_ov, run_ov = parse_sets(args.set)
     params, label, extra = load_params(args, phys_ov)
     rate = args.rate if args.rate is not None else float(extra.get('update_rate', 1000.0))

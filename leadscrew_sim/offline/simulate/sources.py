@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from .options import check_finite, parse_options, RunError
-from ..core.commands import CommandHold
+from ..options import check_finite, parse_options, RunError
+from ...core.commands import CommandHold
 
 
 def read_csv_series(path, what):
@@ -169,7 +169,7 @@ def excite_profile(args, params):
         if getattr(args, 'excite_opt', None):
             raise RunError('--excite-opt needs --excite PROFILE')
         return None
-    from ..analysis.excitation.profiles import make_profile
+    from ...analysis.excitation.profiles import make_profile
     return make_profile(args.excite, params, **parse_options(args.excite_opt, '--excite-opt'))
 
 

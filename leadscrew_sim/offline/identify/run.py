@@ -1,7 +1,7 @@
 """
 The fit of ``identify``: parameters whose re-simulation of a recording's commands gives its states.
 
-The recording becomes a :class:`.identify_problem.Problem`: its commands
+The recording becomes a :class:`.problem.Problem`: its commands
 re-simulated with ideal sensors, the residuals the simulated less the
 recorded sensor signals, each divided by its noise level;
 :mod:`leadscrew_sim.analysis.identify.fit` fits them. A fit that does not
@@ -17,13 +17,13 @@ import dataclasses
 import math
 import time
 
-from .identify_inputs import fit_names, start_params
-from .identify_problem import Problem
-from .options import open_recording, RunError
-from ..analysis.identify.bootstrap import bootstrap
-from ..analysis.identify.degeneracy import motion_degeneracies
-from ..analysis.identify import fit as ident
-from ..core.params import ScrewParams
+from .inputs import fit_names, start_params
+from .problem import Problem
+from ..options import open_recording, RunError
+from ...analysis.identify.bootstrap import bootstrap
+from ...analysis.identify.degeneracy import motion_degeneracies
+from ...analysis.identify import fit as ident
+from ...core.params import ScrewParams
 
 
 def horizons(problem):
@@ -47,7 +47,7 @@ def fit_recording(args, progress=None):
         ``fit``, the starting values, a foreign recording's mapping,
         ``rate`` [Hz], ``max_nfev``, ``restarts``).
     progress : FitProgress, optional
-        The status line on a terminal (:mod:`.identify_progress`).
+        The status line on a terminal (:mod:`.progress`).
 
     Returns
     -------

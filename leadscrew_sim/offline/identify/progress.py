@@ -13,7 +13,7 @@ import numpy as np
 
 class FitProgress:
     """
-    A status line on a terminal, updated by :class:`.identify_problem.Problem` as it re-simulates.
+    A status line on a terminal, updated by :class:`.problem.Problem` as it re-simulates.
 
     Parameters
     ----------

@@ -1,9 +1,9 @@
 """
 The problem ``identify`` fits: a recording's replay, its measured signals and their weights.
 
-The recorded commands go through the model (:class:`.replay.Resim`, the
+The recorded commands go through the model (:class:`..replay.resim.Resim`, the
 node's command rules; a foreign recording through
-:class:`.identify_inputs.ForeignReplay`) with ideal sensors; the measured
+:class:`.inputs.ForeignReplay`) with ideal sensors; the measured
 signals are the encoder angle, the scale position, and the motor torque
 unless every command is a torque command, each weighted by its noise level.
 """
@@ -11,16 +11,16 @@ import math
 
 import numpy as np
 
-from .identify_inputs import (check_geometry, FLOOR, ForeignReplay, measured_of_resim,
-                              measurements)
-from .identify_progress import rms_per_signal
-from .options import NS, RunError
-from .replay import Resim
-from ..analysis.identify import fit as ident
-from ..analysis.identify import steps as fit_steps
-from ..core.drive_modes import MODE_TORQUE
-from ..core.params import ParameterError, ScrewParams
-from ..io.run_file import PARAMS_RECORD
+from .inputs import (check_geometry, FLOOR, ForeignReplay, measured_of_resim,
+                     measurements)
+from .progress import rms_per_signal
+from ..options import NS, RunError
+from ..replay.resim import Resim
+from ...analysis.identify import fit as ident
+from ...analysis.identify import steps as fit_steps
+from ...core.drive_modes import MODE_TORQUE
+from ...core.params import ParameterError, ScrewParams
+from ...io.run_file import PARAMS_RECORD
 
 #: The recording's measurement setup: taken from its parameters record, never fitted.
 SETUP_FIELDS = tuple(n for n in ScrewParams.names()

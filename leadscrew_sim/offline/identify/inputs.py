@@ -7,13 +7,13 @@ go through the node's command rules as a leadscrew_sim recording's do.
 """
 import numpy as np
 
-from .options import load_params, NS, parse_sets, RunError
-from ..analysis.identify import fit as ident
-from ..core.commands import CommandHold, NutMap
-from ..core.params import ScrewParams
-from ..core.presets import load_preset, preset_names
-from ..io import cdr as C
-from ..io.run_file import PARAMS_RECORD
+from ..options import load_params, NS, parse_sets, RunError
+from ...analysis.identify import fit as ident
+from ...core.commands import CommandHold, NutMap
+from ...core.params import ScrewParams
+from ...core.presets import load_preset, preset_names
+from ...io import cdr as C
+from ...io.run_file import PARAMS_RECORD
 
 
 #: Smallest noise level used as a weight [unit]: the data's own estimate may be 0.
@@ -157,7 +157,7 @@ class ForeignReplay:
         """Return (segments, command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
         if self._inputs is not None:
             return self._inputs
-        from ..core.model import LeadScrewModel
+        from ...core.model import LeadScrewModel
         model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
         hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
         rows = np.empty((self.n_steps, 4))
@@ -180,7 +180,7 @@ class ForeignReplay:
 
     def replay(self, overrides, n=None):
         """Return the columns of ``model.run`` of the first ``n`` steps (all: None)."""
-        from ..core.model import LeadScrewModel
+        from ...core.model import LeadScrewModel
         params = ScrewParams.from_dict(overrides, base=self.params)
         _seg, rows, forces = self.inputs()
         return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces[:n],

@@ -5,7 +5,7 @@ The run library of ``leadscrew_sim freqresp``: the frequency response from three
 object with the same attributes) and returns dict(responses, linear, lines):
 
 - ``file`` given: the recording's H1 and coherence
-  (:func:`leadscrew_sim.offline.freqresp_recording.recording_response`, imported
+  (:func:`leadscrew_sim.offline.freqresp.recording.recording_response`, imported
   when used), with the linear model of ``--preset`` / ``--params`` overlaid
   when one is named;
 - ``linear``: the linearised model's FRF at the operating point (sampling
@@ -21,11 +21,11 @@ import math
 
 import numpy as np
 
-from .options import load_params, parse_sets, RunError
-from ..analysis.freqresp.measure import (check_request, frequencies, linear_response,
-                                         measurement_step, simulated_response)
-from ..analysis.freqresp.output import plot_bode, write_csv
-from ..analysis.freqresp.summary import summary_lines
+from ..options import load_params, parse_sets, RunError
+from ...analysis.freqresp.measure import (check_request, frequencies, linear_response,
+                                          measurement_step, simulated_response)
+from ...analysis.freqresp.output import plot_bode, write_csv
+from ...analysis.freqresp.summary import summary_lines
 
 __all__ = ['freqresp_run', 'parse_amplitudes']
 
@@ -72,7 +72,7 @@ def _linear(params, names, f, args, sampling, dt=None):
 
 def _recording(args):
     """Return (responses, linear or None) of a recording."""
-    from .freqresp_recording import recording_response, RecordingOptions
+    from .recording import recording_response, RecordingOptions
     if _get(args, 'loop') is not None:
         raise RunError('--loop: a recording gives input -> output responses only')
     opts = RecordingOptions(

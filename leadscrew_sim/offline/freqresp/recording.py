@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
-from .options import NS, open_recording, RunError
-from ..analysis.freqresp import welch
-from ..io import cdr as C
-from ..io.mcap_reader import RecordingError
-from ..core.params import ParameterError
-from ..io.run_file import PARAMS_RECORD, params_from_record
+from ..options import NS, open_recording, RunError
+from ...analysis.freqresp import welch
+from ...io import cdr as C
+from ...io.mcap_reader import RecordingError
+from ...core.params import ParameterError
+from ...io.run_file import PARAMS_RECORD, params_from_record
 
 __all__ = ['INPUTS', 'OUTPUTS', 'RecordingOptions', 'recording_response']
 

@@ -1,0 +1,1 @@
+"""The run library of the ``freqresp`` verb family."""

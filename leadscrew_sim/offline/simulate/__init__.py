@@ -1,0 +1,1 @@
+"""The run library of the ``simulate`` verb family."""
