@@ -72,14 +72,20 @@ def measurements(path, data, recorded, torque_only, foreign):
     """
     Return (Measurements, {signal: (noise level, how it is known)}) of a recording.
 
-    A noise level is the sensor's (its noise and quantisation), else the data's
-    estimate; never below the quantisation step / sqrt(12) of a quantising
-    sensor, nor below the numerical floor: :data:`SIGMA_FLOOR` or
-    :data:`RELATIVE_FLOOR` of the signal's range, whichever is larger (then
-    told as :data:`FLOOR`).
+    A noise level comes from the sensor where the sensor is known: the
+    recording's sensor parameters, or for a foreign recording those of the
+    starting set (``--preset``, ``--params``, ``--set``); it is then
+    hypot(noise, q / sqrt(12)) with the quantisation step q. Where it is
+    not known, it is the data's estimate (:func:`data_level`): the white
+    noise of the second differences, and at least q / sqrt(12) of the step
+    the readings move in (:func:`reading_quantum`), so that a quantised
+    signal whose noise is below its step (most second differences exactly
+    0) is not taken for an exact one. Never below the numerical floor:
+    :data:`SIGMA_FLOOR` or :data:`RELATIVE_FLOOR` of the signal's range,
+    whichever is larger (then told as :data:`FLOOR`).
     """
-    known = {} if foreign else ident.sensor_sigma(recorded)
-    quanta = {} if foreign else quantisation(recorded)
+    levels = sensor_levels(recorded)
+    source = 'the starting set\'s sensor parameters' if foreign else 'sensor parameters'
     signals, sigma, noise = {}, {}, {}
     wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
         ([] if torque_only else ['motor_torque'])
@@ -87,11 +93,10 @@ def measurements(path, data, recorded, torque_only, foreign):
         y = data[name]
         if not np.isfinite(y).any():
             continue
-        s = known.get(name)
-        how = 'sensor parameters'
-        if s is None:
-            s, how = ident.noise_estimate(y), 'estimated from the data'
-        s = max(s, quanta.get(name, 0.0))
+        if name in levels:
+            s, how = levels[name], source
+        else:
+            s, how = data_level(y)
         floor = max(SIGMA_FLOOR[name], RELATIVE_FLOOR * float(np.ptp(y[np.isfinite(y)])))
         if s <= floor:
             s, how = floor, FLOOR
@@ -99,6 +104,133 @@ def measurements(path, data, recorded, torque_only, foreign):
     if not signals:
         raise RunError(f'{path}: no measured joint states to fit against')
     return ident.Measurements(signals, sigma), noise
+
+
+def data_sensors(params, data, noise):
+    """
+    Return the sensor parameters the data show where the sensors are not known.
+
+    The encoder's counts from the step its readings move in (2 pi / q, when
+    that is near a whole number) and its noise from the estimated level less
+    the quantisation; the scale's resolution and noise alike. A known sensor
+    keeps ``params``' values. Used to re-simulate the recorded sensor chain
+    (the drive loop's response to its sensors) of a foreign recording.
+    """
+    out = {n: getattr(params, n) for n in ('encoder_counts', 'encoder_noise', 'linear_scale',
+                                           'scale_resolution', 'scale_noise')}
+    known = sensor_levels(params)
+    for name in ('screw_angle', 'nut_position'):
+        if name in known or name not in noise or noise[name][1] == FLOOR:
+            continue
+        q = reading_quantum(data[name])
+        white = float(np.sqrt(max(noise[name][0] ** 2 - q ** 2 / 12.0, 0.0)))
+        if name == 'screw_angle':
+            counts = 2.0 * np.pi / q if q > 0.0 else 0.0
+            out['encoder_counts'] = int(round(counts)) if counts >= 2.0 and \
+                abs(counts - round(counts)) < 1e-3 * counts else 0
+            out['encoder_noise'] = white if out['encoder_counts'] else noise[name][0]
+        else:
+            out['scale_resolution'], out['scale_noise'] = q, white
+    return out
+
+
+#: How a noise level is known when it is estimated from the data.
+ESTIMATED = 'estimated from the data'
+
+
+def sensor_levels(params):
+    """
+    Return {signal: noise level [unit]} of the known (non-ideal) sensors of ``params``.
+
+    hypot(Gaussian noise, :func:`quantisation`): an ideal sensor (no counts,
+    noise or resolution) is unknown and left out, and so is the nut signal
+    without a linear scale (it is the encoder's through the lead).
+    """
+    quanta = quantisation(params)
+    noise = {'screw_angle': params.encoder_noise,
+             'nut_position': params.scale_noise if params.linear_scale else 0.0}
+    out = {}
+    for name, n in noise.items():
+        level = float(np.hypot(n, quanta.get(name, 0.0)))
+        if level > 0.0:
+            out[name] = level
+    return out
+
+
+def data_level(y):
+    """
+    Return (noise level [unit], how it is known) of a signal whose sensor is not known.
+
+    The white noise of its second differences (:func:`..analysis.identify.data.noise_estimate`),
+    and at least q / sqrt(12) when the readings move in whole steps of q
+    (:func:`reading_quantum`): a quantiser whose noise is below its step
+    reads the same value for many steps, the median of the second differences
+    is then 0, while each reading is still up to q / 2 off.
+    """
+    s, how = ident.noise_estimate(y), ESTIMATED
+    q = reading_quantum(y)
+    if q > 0.0 and q / np.sqrt(12.0) > s:
+        s, how = q / np.sqrt(12.0), f'{ESTIMATED} (readings in steps of {q:.4g}: q / sqrt(12))'
+    return s, how
+
+
+#: Least number of nonzero increments, and the share of the readings that must lie on the
+#: grid of the smallest (to a tolerance of QUANTUM_TOL of it), that make readings step-wise.
+QUANTUM_COUNT, QUANTUM_SHARE, QUANTUM_TOL = 20, 0.95, 0.02
+
+
+def reading_quantum(y):
+    """
+    Return the step q [unit] a signal's readings move in (0: not step-wise).
+
+    Read from the histogram of the increments: the smallest nonzero increment
+    (the median of those within 1.5 times the least, against round-off) is
+    k steps of q, the smallest k = 1, 2, .. for which the readings are step-wise when at least
+    :data:`QUANTUM_SHARE` of them lie on one grid of that step (to
+    :data:`QUANTUM_TOL` of it, about a common offset: a sensor's bias or
+    homing). A smooth signal is not: even where it moves at constant speeds
+    whose increments are multiples of one another, each speed change puts
+    its readings on another grid.
+    """
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    if len(y) < 3:
+        return 0.0
+    d = np.abs(np.diff(y))
+    span = float(np.ptp(y))
+    nz = d[d > 1e-9 * span] if span > 0 else d[:0]
+    if len(nz) < QUANTUM_COUNT:
+        return 0.0
+    least = float(np.median(nz[nz <= 1.5 * nz.min()]))
+    for k in range(1, QUANTUM_DIVISORS + 1):     # the least increment may be k steps
+        q = least / k
+        phase = np.mod((y - y[0]) / q, 1.0)
+        centre = np.angle(np.mean(np.exp(2j * np.pi * phase))) / (2.0 * np.pi)
+        off = np.mod(phase - centre + 0.5, 1.0) - 0.5
+        if np.mean(np.abs(off) <= QUANTUM_TOL) >= QUANTUM_SHARE and _jitters(y, q):
+            return q
+    return 0.0
+
+
+def _jitters(y, q):
+    """
+    Return whether readings ``y`` jitter by whole steps ``q`` (a quantiser, not a smooth motion).
+
+    A quantiser's second differences are 0 or whole nonzero multiples of q
+    (a reading one step early or late), and there are many of them; a
+    smooth signal's are far below q, and one at constant speed has none.
+    """
+    d2 = np.diff(y, 2)
+    big = d2[np.abs(d2) > 0.5 * q]
+    if len(big) < QUANTUM_COUNT or len(big) < 0.5 * np.count_nonzero(np.abs(d2) > 1e-3 * q):
+        return False
+    r = big / q
+    return bool(np.mean(np.abs(r - np.round(r)) <= QUANTUM_TOL) >= QUANTUM_SHARE)
+
+
+#: Most steps the least increment of a moving quantised signal may span (the largest step
+#: whose grid holds the readings is taken).
+QUANTUM_DIVISORS = 16
 
 
 def quantisation(params):

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .inputs import (check_geometry, FLOOR, ForeignReplay, measured_of_resim,
-                     measurements)
+from .inputs import (check_geometry, data_sensors, ESTIMATED, FLOOR, ForeignReplay,
+                     measured_of_resim, measurements)
 from .progress import rms_per_signal
 from ..options import NS, RunError
 from ..replay.resim import Resim
@@ -91,8 +91,14 @@ class Problem:
         self.progress, self.stage, self.misfit = None, 'fit', {}
         self.raised = []
         self.loop_noise = {}
-        if not (self.torque_only or foreign) and ident.sensor_sigma(recorded) != \
-                ident.sensor_sigma(ScrewParams()):
+        # the sensors the drive loop closed over: the recording's, else those the starting
+        # set declares or the data show (a foreign recording)
+        self.loop_sensors = {n: getattr(recorded, n) for n in ident.IDEAL_SENSORS}
+        if foreign:
+            self.loop_sensors.update(data_sensors(recorded, data, self.noise))
+        if not self.torque_only and any(
+                self.loop_sensors[n] for n in ('encoder_counts', 'encoder_noise',
+                                               'scale_resolution', 'scale_noise')):
             self.sensor_noise = dict(self.noise)
             self.add_loop_noise({})
 
@@ -115,7 +121,7 @@ class Problem:
         nut's second attempt): one seed, as those were tuned with.
         """
         recorded = self.recorded
-        sensors = {n: getattr(recorded, n) for n in ident.IDEAL_SENSORS}
+        sensors = dict(self.loop_sensors)
         clean = self.replay(values, plain=True)
         noisy = []
         for j in range(LOOP_SEEDS):
@@ -131,7 +137,7 @@ class Problem:
             loop = float(np.sqrt(np.mean(d ** 2)))
             self.loop_noise[name] = loop
             sigma, how = self.sensor_noise[name]
-            total = math.hypot(sigma, loop) if how == 'sensor parameters' else max(sigma, loop)
+            total = max(sigma, loop) if how.startswith(ESTIMATED) else math.hypot(sigma, loop)
             meas.sigma[name] = total
             self.noise[name] = (total, f'{how} and the drive loop\'s response to the '
                                 f'sensor noise ({loop:.3g})')
