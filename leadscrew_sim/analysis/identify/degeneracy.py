@@ -4,7 +4,8 @@ What a motion cannot show: the parameters a re-simulated run leaves undetermined
 Some parameters act only through an event or a range of the motion: the
 backlash only when the thread contact changes flank (a reversal of the
 load), the static friction only when the thread breaks away from
-standstill, the kinetic friction only while it slides, and the shape of
+standstill or slides slowly in contact (:func:`static_episodes`), the
+kinetic friction only while it slides, and the shape of
 the friction curve (Stribeck velocity and exponent, viscous slope) only
 when it slides at more than one speed (at a single speed they, the kinetic
 friction and the Coulomb terms add up to one constant torque). A run
@@ -29,7 +30,7 @@ SLIDING = 1e-12
 SHAPE = ('stribeck_velocity', 'stribeck_exponent', 'mu_viscous')
 
 
-def motion_degeneracies(cols):
+def motion_degeneracies(cols, curve=None):
     """
     Return name -> why the motion of re-simulated columns ``cols`` cannot determine it.
 
@@ -39,6 +40,10 @@ def motion_degeneracies(cols):
         ``model.run`` columns of the steps compared: ``contact`` (the thread
         flank, 0 when none), ``stick_a`` (1 while stuck), ``sliding_velocity``
         [m/s].
+    curve : tuple, optional
+        (Stribeck velocity [m/s], Stribeck exponent [-]) of the friction law:
+        slow sliding in contact then also shows the static friction
+        (:func:`static_episodes`).
 
     """
     out = {}
@@ -46,9 +51,11 @@ def motion_degeneracies(cols):
     if len(np.unique(contact[contact != 0])) < 2:
         out['backlash'] = ('the load never reverses: the thread contact never changed '
                            'flank')
-    stick = np.asarray(cols['stick_a'])
-    if not np.count_nonzero((stick[:-1] == 1) & (stick[1:] == 0)):
-        out['mu_s'] = 'the motion never breaks away from standstill'
+    if not len(static_episodes(cols, curve)):
+        band = '' if curve is None else \
+            f' nor slides in contact slower than {_slow_speed(curve):.3g} m/s'
+        out['mu_s'] = (f'the motion never breaks away from standstill{band} (the static '
+                       'friction acts nowhere else)')
     speed = np.abs(np.asarray(cols['sliding_velocity'], dtype=float))
     sliding = speed[speed > SLIDING]
     if not len(sliding):
@@ -63,3 +70,48 @@ def motion_degeneracies(cols):
                          f'{100 * share:.3g} % of its sliding steps): the friction curve\'s '
                          'shape needs more than one')
     return out
+
+
+#: Least weight of the static friction in the Stribeck law, exp(-(v / v_s)^delta), at which
+#: sliding in contact counts as showing it.
+STATIC_WEIGHT = 0.05
+
+#: Steps without a static-friction step that separate two episodes of :func:`static_episodes`.
+EPISODE_GAP = 20
+
+
+def _slow_speed(curve):
+    """Return the sliding speed [m/s] below which mu_s weighs more than STATIC_WEIGHT."""
+    v_s, delta = curve
+    return float(v_s * np.log(1.0 / STATIC_WEIGHT) ** (1.0 / delta))
+
+
+def static_episodes(cols, curve=None):
+    """
+    Return the (first, last) step of each episode of the compared run in which mu_s acts.
+
+    The static friction acts where the thread breaks away from standstill
+    (stuck, ``stick_a`` 1, then sliding) and, in the Stribeck law
+    mu_k + (mu_s - mu_k) exp(-(v / v_s)^delta), wherever the thread slides
+    in contact slower than the speed at which its weight falls to
+    :data:`STATIC_WEIGHT` (``curve`` given): a start from rest whatever
+    drives it (a torque step, a velocity step, a slow ramp), a start from
+    the backlash gap (the thread reaches its flank with the nut at rest, as
+    on a horizontal axis without load, where it is never stuck), a reversal
+    and a stop. Steps closer than :data:`EPISODE_GAP` are one episode;
+    indices are of the compared steps.
+    """
+    stick = np.asarray(cols['stick_a'])
+    marks = np.zeros(len(stick), dtype=bool)
+    marks[1:] |= (stick[:-1] == 1) & (stick[1:] == 0)
+    if curve is not None and curve[0] > 0:
+        speed = np.abs(np.asarray(cols['sliding_velocity'], dtype=float))
+        contact = np.asarray(cols['contact']) != 0
+        marks |= contact & (stick == 0) & (speed > SLIDING) & (speed < _slow_speed(curve))
+    idx = np.flatnonzero(marks)
+    if not len(idx):
+        return []
+    cut = np.flatnonzero(np.diff(idx) > EPISODE_GAP)
+    firsts = np.r_[idx[0], idx[cut + 1]]
+    lasts = np.r_[idx[cut], idx[-1]]
+    return [(int(a), int(b)) for a, b in zip(firsts, lasts)]

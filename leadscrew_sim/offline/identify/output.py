@@ -49,7 +49,9 @@ def params_document(params, label, res, write_all=False):
     """
     Return the parameter file of a fitted set: ``/**: ros__parameters:``, exact floats.
 
-    By default only the identified values are written, after ``preset: <label>``
+    By default only the identified values are written, and those exact data
+    determine (ideal sensors: no statistical interval; each marked so by a
+    comment on its line), after ``preset: <label>``
     when the starting values were a preset (so ``simulate --params`` and the
     node rebuild the starting set with the identified values in it); each fitted
     parameter left out is named in a comment with why (not identifiable, or the
@@ -71,9 +73,13 @@ def params_document(params, label, res, write_all=False):
 
     """
     ident = [n for n, vd in zip(res.names, res.verdicts) if vd.identified]
-    kept = {n: vd.reason for n, vd in zip(res.names, res.verdicts) if not vd.identified}
+    exact = [n for n, vd in zip(res.names, res.verdicts) if vd.exact and not vd.identified]
+    kept = {n: vd.reason for n, vd in zip(res.names, res.verdicts) if not vd.fitted}
     head = [f'# leadscrew_sim identify: starting values from {label}; identified: '
             f'{", ".join(f"{n}={getattr(params, n)!r}" for n in ident) or "none"}']
+    if exact:
+        head.append('# determined by exact data (ideal sensors, no statistical interval): '
+                    f'{", ".join(f"{n}={getattr(params, n)!r}" for n in exact)}')
     if write_all:
         values = {name: getattr(params, name) for name in ScrewParams.names()
                   if not name.startswith('fault_')}
@@ -82,19 +88,20 @@ def params_document(params, label, res, write_all=False):
                         'starting values')
     else:
         values = {'preset': label} if label in preset_names() else {}
-        values.update({n: getattr(params, n) for n in ident})
-        head.append('# only the identified values are written' + (
+        values.update({n: getattr(params, n) for n in res.names if n in ident or n in exact})
+        head.append('# only the identified values (and those exact data determine) are written' + (
             f' (over the preset {label})' if values.get('preset') else
             f' (the other starting values came from {label})'))
         if kept:
             head.append('# left out, not identified (write them with --write-all):')
             head += [f'#   {n}: {" ".join(why.split())}' for n, why in kept.items()]
     body = yamlio.dump({'/**': {'ros__parameters': values}}).split('\n')
-    if write_all:
-        for i, line in enumerate(body):
-            m = _KEY.match(line)
-            if m and m.group(1) in kept:
-                body[i] = f'{line}  # not identified: {_short(kept[m.group(1)])}'
+    for i, line in enumerate(body):
+        m = _KEY.match(line)
+        if m and m.group(1) in exact:
+            body[i] = f'{line}  # exact data: determined to the fit\'s resolution, no interval'
+        elif m and write_all and m.group(1) in kept:
+            body[i] = f'{line}  # not identified: {_short(kept[m.group(1)])}'
     return '\n'.join(head + body) + '\n'
 
 

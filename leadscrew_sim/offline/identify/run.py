@@ -17,11 +17,13 @@ import dataclasses
 import math
 import time
 
+import numpy as np
+
 from .inputs import fit_names, start_params
 from .problem import Problem
 from ..options import open_recording, RunError
 from ...analysis.identify.bootstrap import bootstrap
-from ...analysis.identify.degeneracy import motion_degeneracies
+from ...analysis.identify.degeneracy import motion_degeneracies, static_episodes
 from ...analysis.identify import fit as ident
 from ...core.params import ScrewParams
 
@@ -142,7 +144,7 @@ def _fit(plan, rescan=False):
     """
     problem = plan.problem
     initial = problem.replay({})
-    why = motion_degeneracies(problem.compared(initial))
+    why = _degeneracies(plan, problem.compared(initial), {})
     res = ident.fit(problem.residuals, plan.coords, horizons=horizons(problem), hints=why,
                     max_nfev=plan.max_nfev, profile=problem.anchoring is not None,
                     rescan=rescan, jac_steps=problem.jac_steps, exact=problem.exact)
@@ -153,7 +155,7 @@ def _fit(plan, rescan=False):
         res = _refit(plan, res, why)
         fitted = dict(zip(res.names, res.values))
     final = problem.replay(fitted)
-    seen = motion_degeneracies(problem.compared(final))
+    seen = _degeneracies(plan, problem.compared(final), fitted)
     if set(seen) != set(why):       # the motion at the fit shows other events than at the start
         why = seen
         res = _refit(plan, res, why)
@@ -163,6 +165,21 @@ def _fit(plan, rescan=False):
         res = _refit(plan, res, why)
         final = problem.replay(dict(zip(res.names, res.values)))
     return res, initial, final, _misfit(problem, final)
+
+
+def _degeneracies(plan, cols, values):
+    """
+    Return :func:`motion_degeneracies` of compared columns ``cols`` at the physical ``values``.
+
+    The friction curve (Stribeck velocity and exponent) is the one of
+    ``values`` over the start; the episodes in which the static friction acts
+    (their first and last times [s]) are kept in ``problem.static``.
+    """
+    curve = tuple(values.get(n, getattr(plan.start, n))
+                  for n in ('stribeck_velocity', 'stribeck_exponent'))
+    t = np.asarray(cols['time'], dtype=float)
+    plan.problem.static = [(float(t[a]), float(t[b])) for a, b in static_episodes(cols, curve)]
+    return motion_degeneracies(cols, curve)
 
 
 def _rescanned(plan, weights, missed):
