@@ -20,7 +20,7 @@ from ..offline.options import (check_finite, DEFAULT_PRESET, load_params, parse_
 from ..analysis.excitation.profiles import make_profile, PROFILES
 
 HELP = ('publish an identification profile as commands (breakaway, sweep, reversals, iso230, '
-        'chirp, multisine)')
+        'chirp, multisine, commission)')
 
 
 def add_arguments(p):
@@ -50,6 +50,9 @@ def add_arguments(p):
                    help='print the first N commands (default 20) and exit')
     p.add_argument('-o', '--output', '--log', dest='log', metavar='FILE.csv',
                    help='write every command sent as index,time,value [-, s, SI]')
+    p.add_argument('--segments', metavar='FILE.json',
+                   help='commission: write the segments sidecar (part names and times from '
+                   'the first command) for a recording without the segments record')
     p.add_argument('-q', '--quiet', action='store_true',
                    help='print no progress while publishing (warnings and errors only)')
 
@@ -80,6 +83,8 @@ def run(args):
         raise RunError(f'--command-rate {args.rate:g} Hz must lie in [0.1, 10000] Hz')
     if not (math.isfinite(args.wait_timeout) and args.wait_timeout >= 0.0):
         raise RunError(f'--wait-timeout {args.wait_timeout!r} s must be >= 0')
+    if args.segments and profile.kind != 'mixed':
+        raise RunError(f'--segments: the {profile.name} profile has no parts (use commission)')
     if args.prefix and not args.joint_commands:
         raise RunError('--prefix names joints: it needs --joint-commands')
     if args.dry_run is not None:
@@ -90,7 +95,8 @@ def run(args):
 def _dry_run(profile, args):
     """Print the first commands the profile would send; return 0."""
     n_total = int(math.ceil(profile.duration * args.rate - 1e-9)) + 1
-    topic = 'joint_commands' if args.joint_commands else profile.topic
+    topic = 'joint_commands' if args.joint_commands else ', '.join(
+        getattr(profile, 'topics', None) or [profile.topic])
     print(f'{profile.describe()}')
     print(f'{n_total} commands on {topic} [{profile.unit}] over {profile.duration:.3f} s at '
           f'{args.rate:g} Hz; the first {min(args.dry_run, n_total)}:')
@@ -118,9 +124,13 @@ def _publish(profile, args):
             log=None if writer is None else (lambda k, t, v: writer.writerow([k, repr(t),
                                                                              repr(v)])))
         try:
-            return ex.run(args.wait_timeout)
+            code = ex.run(args.wait_timeout)
         except exciter_mod.ExciteError as exc:
             raise RunError(str(exc)) from None
+        if args.segments and ex.start_ns is not None:
+            from ..offline.commission.segments import write_sidecar
+            write_sidecar(args.segments, profile, ex.start_ns)
+        return code
     finally:
         if log_file is not None:
             log_file.close()

@@ -16,6 +16,7 @@ import math
 import signal
 import time
 
+from ..analysis.excitation.base import KIND_TOPICS
 from ..io.topics import resolve, TOPIC_SPECS
 
 __all__ = ['ExciteError', 'Exciter']
@@ -61,17 +62,32 @@ class Exciter:
         self.namespace = namespace
         self.joint_commands, self.prefix = joint_commands, prefix
         self.out, self.log = out, log
-        self.topic = 'joint_commands' if joint_commands else profile.topic
+        self.mixed = profile.kind == 'mixed'        # commission: a topic per part
+        first = profile.parts[0][2] if self.mixed else profile
+        self.topic = 'joint_commands' if joint_commands else first.topic
         self.sent = 0
         self.stop = False
+        #: System time [ns] of the first command sent (None before): the segments sidecar's
+        #: time base.
+        self.start_ns = None
 
-    def _message(self, value):
-        """Return the message of one command value."""
+    def _kind(self, t):
+        """Return the command kind at profile time ``t`` [s]."""
+        return self.profile.kind_at(t) if self.mixed else self.profile.kind
+
+    def _topics(self):
+        """Return the command topics the profile publishes on."""
+        if self.joint_commands:
+            return ['joint_commands']
+        return self.profile.topics if self.mixed else [self.profile.topic]
+
+    def _message(self, value, kind=None):
+        """Return the message of one command value (of ``kind``, default the profile's)."""
         if not self.joint_commands:
             from std_msgs.msg import Float64
             return Float64(data=float(value))
         from sensor_msgs.msg import JointState
-        kind = self.profile.kind
+        kind = kind or self.profile.kind
         if kind == 'torque':
             return JointState(name=[self.prefix + 'screw_joint'], effort=[float(value)])
         msg = JointState(name=[self.prefix + 'nut_joint'])
@@ -126,8 +142,12 @@ class Exciter:
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float64
         from .interfaces import message_class, qos_profile
-        msg_type, _role, qos = TOPIC_SPECS[self.topic]
-        pub = node.create_publisher(message_class(msg_type), self.topic, qos_profile(qos))
+        pubs = {}
+        for topic in self._topics():
+            msg_type, _role, qos = TOPIC_SPECS[topic]
+            pubs[topic] = node.create_publisher(message_class(msg_type), topic,
+                                                qos_profile(qos))
+        pub = pubs[self.topic]
         name = resolve(self.topic, node.get_namespace())
         latest = {'x': None}
         sub = node.create_subscription(Float64, 'nut_position',
@@ -151,7 +171,11 @@ class Exciter:
             state['k'] = k
             t = k / self.rate
             value = ctl(t, latest['x'])
-            pub.publish(self._message(value))
+            kind = self._kind(t)
+            topic = 'joint_commands' if self.joint_commands else KIND_TOPICS[kind]
+            pubs[topic].publish(self._message(value, kind))
+            if self.start_ns is None:
+                self.start_ns = time.time_ns()
             self.sent += 1
             if self.log is not None:
                 self.log(k, t, value)
@@ -159,9 +183,10 @@ class Exciter:
             if seg != state['segment']:
                 state['segment'] = seg
                 s = self.profile.segments[seg]
+                unit = self.profile.unit_at(t) if self.mixed else self.profile.unit
                 self.out(f'excite: t={t:8.3f} s  segment {seg + 1}/'
                          f'{len(self.profile.segments)} {s.label}  command {value:+.6g} '
-                         f'{self.profile.unit}')
+                         f'{unit}')
             state['done'] = k >= n_last
 
         timer = node.create_timer(1.0 / self.rate, tick,
@@ -171,12 +196,16 @@ class Exciter:
             executor.spin_once(timeout_sec=0.05)
         timer.cancel()
         if self.stop:
-            if self.profile.kind != 'position':     # a position target holds by itself
-                pub.publish(self._message(self.profile(self.profile.duration)))
+            t_end = self.profile.duration
+            kind = self._kind(t_end)
+            if kind != 'position':     # a position target holds by itself
+                topic = 'joint_commands' if self.joint_commands else KIND_TOPICS[kind]
+                pubs[topic].publish(self._message(self.profile(t_end), kind))
             self.out(f'excite: interrupted after {self.sent} commands (sent the rest value '
                      'of a torque or speed profile)')
             return 130
-        if not pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)):
+        if not all(p.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+                   for p in pubs.values()):
             self.out(f'excite: warning: the last commands were not acknowledged within '
                      f'{ACK_TIMEOUT_S:g} s')
         self.out(f'excite: done, {self.sent} commands in {time.monotonic() - t0:.3f} s')
@@ -202,9 +231,11 @@ class Exciter:
             if self.stop:
                 return True
             executor.spin_once(timeout_sec=0.01)
-        if self.profile.kind != 'torque':
+        kinds = {p.kind for _n, _t, p in self.profile.parts} if self.mixed else {
+            self.profile.kind}
+        if 'torque' not in kinds:
             node.destroy_subscription(sub)         # only the breakaway ramps follow the nut
-        if self.profile.kind == 'torque' and latest['x'] is None:
+        if 'torque' in kinds and latest['x'] is None:
             self.out('excite: no nut_position received: the ramps run as planned, without '
                      'the stop at abort_travel')
         return False

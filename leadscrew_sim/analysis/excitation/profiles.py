@@ -498,3 +498,6 @@ def make_profile(name, params, **options):
         raise ProfileError(name, 'name', '', f'unknown excitation profile {name!r} (profiles: '
                            f'{", ".join(PROFILES)})') from None
     return cls(params, **options)
+
+from .commission import COMMISSION  # noqa: E402 (it builds the profiles above)
+PROFILES.update(COMMISSION)

@@ -32,6 +32,7 @@ from ...io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, param
                             RunWriter, UPDATE_RECORD)
 from ...io.record_fill import Stamps
 from ...io.tick_writer import Events, Stream, write_block
+from ...analysis.excitation.commission import SEGMENTS_RECORD
 
 #: Ticks per block: the model runs a block in one compiled call (open-loop
 #: inputs) and the block's messages are encoded and recorded at once.
@@ -120,7 +121,9 @@ def _simulate(args, warn):
         log.change(0, first)                # nothing latched to clear at the start
         params = ScrewParams.from_dict(first, base=params)
     model = LeadScrewModel(params, dt=dt_ns / NS)
-    if drive is not None:
+    if drive is not None and drive[1] == 'mixed':       # commission: a topic per part
+        torque_fn = MixedInput(drive[0], model, prefix)
+    elif drive is not None:
         torque_fn = DriveInput(drive[0], drive[1], model, prefix)
     out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
     w = RunWriter(out, prefix, clock=args.clock, params=params,
@@ -130,6 +133,8 @@ def _simulate(args, warn):
     w.rec.add_metadata(CLI_RECORD, {
         'command': 'simulate', 'argv': ' '.join(sys.argv[1:]), 'torque_input': torque_desc,
         'force_input': force_desc, 'steps': str(n_steps)})
+    if hasattr(profile, 'record'):      # the commission profile's segments, for later tools
+        w.rec.add_metadata(SEGMENTS_RECORD, profile.record())
     t_wall = time.perf_counter()
     try:
         w.write_description(0)
@@ -160,7 +165,7 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
     """
     dt = dt_ns / NS
     needs_state = getattr(torque_fn, 'needs_state', False)
-    hold = torque_fn.hold if isinstance(torque_fn, DriveInput) else CommandHold(
+    hold = torque_fn.hold if isinstance(torque_fn, (DriveInput, MixedInput)) else CommandHold(
         '', 0.0, NutMap.of_model(model), params=model.params)
     line = StateDelivery(model.params)
     o = model.output()
@@ -169,7 +174,9 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
     stats = dict(x_min=x, x_max=x, x_end=x, tq_max=0.0)
     force = 0.0
     cuts = sorted({k for k in range(0, n_steps, BLOCK_TICKS)}
-                  | {k for k, _c in schedule if 0 < k < n_steps})
+                  | {k for k, _c in schedule if 0 < k < n_steps}
+                  | set(torque_fn.cuts(dt_ns, n_steps) if isinstance(torque_fn, MixedInput)
+                        else ()))
     changes_at = dict(schedule)
     for k0, k1 in zip(cuts, cuts[1:] + [n_steps]):
         if k0 in changes_at:
@@ -181,6 +188,8 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         force = float(forces[-1])
         if isinstance(torque_fn, DriveInput):
             torques, cols = torque_fn.block(ks, dt_ns, forces)
+        elif isinstance(torque_fn, MixedInput):
+            torques, cols = torque_fn.block(ks, dt_ns, forces, x)
         elif needs_state:
             torques, cols = _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm,
                                                vm_scale)
@@ -447,3 +456,71 @@ class DriveInput:
             previous = previous if command is None else command
             commands[i] = previous
         return commands
+
+
+class MixedInput:
+    """
+    The commission profile: each part on its own command topic, all through one CommandHold.
+
+    A velocity or position part runs block-wise as :class:`DriveInput`; the
+    breakaway part (torque) tick by tick, its controller reading the nut
+    position. Blocks are cut at the parts' first ticks (:meth:`cuts`), so
+    each block's commands go on one topic.
+    """
+
+    def __init__(self, profile, model, prefix):
+        """Keep the profile, its controller and the model."""
+        self.profile, self.model = profile, model
+        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model), params=model.params)
+        self.ctl = profile.controller()
+        self.previous = INITIAL_COMMAND
+
+    def cuts(self, dt_ns, n_steps):
+        """Return the first tick of every part after the first (within the run)."""
+        out = []
+        for _name, t0, _part in self.profile.parts[1:]:
+            k = int(math.ceil(t0 * NS / dt_ns - 1e-6))
+            if 0 < k < n_steps:
+                out.append(k)
+        return out
+
+    def block(self, ks, dt_ns, forces, x):
+        """Run ticks ``ks`` of one part; return the commands (as recorded) and the columns."""
+        t_ns = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
+        ts = t_ns / NS
+        _name, t0, part = self.profile.part_at(float(ts[0]))
+        if part.kind == 'torque':
+            return self._torque_ticks(t_ns, forces, x)
+        values = part.values(ts - t0)
+        commands = self.hold.take_series(part.topic, values, t_ns)
+        if commands is None:
+            commands = self._one_by_one(part.topic, values, t_ns)
+        self.previous = tuple(commands[-1])
+        cols = self.model.run(None, forces, commands=commands)
+        return (part.topic, C.F64_TEMPLATE.rows(None, [values])), cols
+
+    def _take(self, topic, value, t):
+        """Give one command to the hold; return the drive command in force at ``t`` [ns]."""
+        take = getattr(self.hold, topic)
+        reason = take(value, t)
+        if reason and reason is not DROPPED:
+            raise RunError(f'commission input at t={t / NS:.6f} s: {reason}')
+        command = self.hold.delayed(self.hold.command_at(t))
+        self.previous = self.previous if command is None else tuple(command)
+        return self.previous
+
+    def _one_by_one(self, topic, values, t_ns):
+        """Return the drive commands of the ticks at ``t_ns``, each through CommandHold."""
+        return np.array([self._take(topic, float(v), t) for v, t in zip(values, t_ns.tolist())])
+
+    def _torque_ticks(self, t_ns, forces, x):
+        """Step the torque part tick by tick (its controller reads the nut position x [m])."""
+        torques, parts = [], []
+        for i, t in enumerate(t_ns.tolist()):
+            tq = float(self.ctl(t / NS, x))
+            torques.append(tq)
+            row = self._take('torque_command', tq, t)
+            r = self.model.run(None, forces[i:i + 1], commands=[row])
+            parts.append(r)
+            x = float(r['nut_position'][-1])
+        return torques, {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

@@ -343,7 +343,8 @@ def make_drive_source(args, params, profile=None):
     Return the drive input of simulate as (fn, topic, description), or None for a torque input.
 
     ``profile``: the ``--excite`` profile (a drive input when it commands
-    velocity or position).
+    velocity or position; the commission profile is returned as it is, with
+    topic ``mixed``: each part on its own command topic).
 
     ``fn(t)`` returns (nut position [m] or NaN, nut velocity [m/s] or NaN) at t [s];
     ``topic`` is the command topic it is recorded on: ``velocity_command``,
@@ -353,6 +354,13 @@ def make_drive_source(args, params, profile=None):
     chosen = [n for n, v in (('--velocity', args.velocity), ('--velocity-csv', args.velocity_csv),
                              ('--position', args.position), ('--position-csv', args.position_csv))
               if v is not None]
+    if profile is not None and profile.kind == 'mixed':     # commission: a part per command
+        others = chosen + [n for n, v in (('--torque', args.torque),
+                                          ('--torque-csv', args.torque_csv),
+                                          ('--profile', args.profile)) if v is not None]
+        if others:
+            raise RunError(f'give only one input, not --excite and {" and ".join(others)}')
+        return profile, 'mixed', profile.describe()
     if args.profile == 'trapezoid':
         chosen.append('--profile trapezoid')
     if profile is not None and profile.kind != 'torque':
