@@ -2,6 +2,7 @@
 import argparse
 import sys
 
+from ..offline.foreign.mapping import COMMAND_KINDS
 from ..offline.options import RunError
 
 PROG = 'leadscrew_sim'
@@ -49,3 +50,36 @@ def add_deprecated_alias(p, old, new, dest, type=None):
     """
     p.add_argument(old, dest=dest, type=type, action=_DeprecatedAlias, new=new,
                    default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+
+def add_mapping_arguments(p, step_rate_dest='step_rate'):
+    """
+    Add the mapping options of a foreign recording to parser ``p``.
+
+    ``step_rate_dest``: the attribute of ``--step-rate`` (``identify`` keeps ``rate``).
+    """
+    g = p.add_argument_group('mapping of a foreign recording (a real axis\'s bag)')
+    g.add_argument('--map', metavar='FILE.yaml', help='the mapping keys below in a YAML file '
+                   '(state_topic: ..., command_index: ...); options given here win')
+    g.add_argument('--state-topic', help='sensor_msgs/JointState topic of the measured states '
+                   '(default joint_states)')
+    g.add_argument('--screw-joint', help='joint name of the screw (motor) in the states '
+                   '[rad, rad/s, N m]')
+    g.add_argument('--nut-joint', help='joint name of the nut in the states [m, m/s, N]')
+    g.add_argument('--command-topic', help='command topic: std_msgs/Float64, '
+                   'std_msgs/Float64MultiArray, sensor_msgs/JointState or '
+                   'trajectory_msgs/JointTrajectory')
+    g.add_argument('--command-kind', choices=COMMAND_KINDS,
+                   help='what a Float64 (or Float64MultiArray entry) command is: motor torque '
+                   '[N m], nut velocity [m/s] or nut position [m]')
+    g.add_argument('--command-index', type=int, metavar='N',
+                   help='entry of a Float64MultiArray command [-] (default 0)')
+    g.add_argument('--command-joint', metavar='NAME',
+                   help='joint of a JointState or JointTrajectory command (default: the nut '
+                   'joint where named, else the screw joint)')
+    g.add_argument('--command-delay', type=float, metavar='S',
+                   help='constant delay from a command to its effect [s] (default: estimated)')
+    g.add_argument('--step-rate', dest=step_rate_dest, type=float, metavar='HZ',
+                   help='step rate [Hz] of the re-simulation (default 1000, or the command '
+                   'rate where faster)')
+    return g

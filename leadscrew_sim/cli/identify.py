@@ -5,7 +5,7 @@ The fit is :func:`leadscrew_sim.offline.identify.run.fit_recording`; this verb
 parses its options, prints the report (:mod:`.identify_report`) and has the
 report, the parameter file and the plot written.
 """
-from .args import add_deprecated_alias
+from .args import add_deprecated_alias, add_mapping_arguments
 from .identify_report import report
 from ..analysis.identify import fit as ident
 from ..offline.identify.run import fit_recording
@@ -18,7 +18,7 @@ HELP = 'fit friction, backlash and other parameters to a recording'
 
 def add_arguments(p):
     """Add the options of ``identify`` to parser ``p``."""
-    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('file', help='the recording (MCAP file or rosbag2 bag directory)')
     p.add_argument('--fit', help=f'comma list of parameters to fit (default '
                    f'{",".join(ident.DEFAULT_FIT)}; fittable: {", ".join(ident.FITTABLE)})')
     p.add_argument('--preset', help='starting and fixed values: a preset (default: the one '
@@ -31,16 +31,7 @@ def add_arguments(p):
                    'as a parameter file (simulate --params, the node)')
     p.add_argument('--report', metavar='FILE', help='also write the report (it is printed)')
     p.add_argument('--plot', metavar='FILE.png', help='recorded, initial and fitted signals')
-    p.add_argument('--state-topic', help='JointState topic of the measured states '
-                   '(a foreign recording; default joint_states)')
-    p.add_argument('--command-topic', help='command topic (a foreign recording)')
-    p.add_argument('--command-kind', choices=('torque', 'velocity', 'position'),
-                   help='what a Float64 command on --command-topic is: motor torque [N m], '
-                   'nut velocity [m/s] or nut position [m]')
-    p.add_argument('--screw-joint', help='joint name of the screw (motor) in the states')
-    p.add_argument('--nut-joint', help='joint name of the nut in the states')
-    p.add_argument('--step-rate', dest='rate', type=float, metavar='HZ',
-                   help='step rate [Hz] of a foreign recording (default 1000)')
+    add_mapping_arguments(p, step_rate_dest='rate')
     add_deprecated_alias(p, '--rate', '--step-rate', 'rate', float)
     p.add_argument('--max-nfev', type=int, metavar='N',
                    help='most re-simulations per fit stage [-]')

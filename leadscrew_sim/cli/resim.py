@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .args import add_compression_argument
+from .args import add_compression_argument, add_mapping_arguments
 from .event_lines import print_events
-from ..offline.options import (compression_of, gc_paused, open_recording, parse_sets,
-                               Progress, RunError)
+from ..offline.foreign.mapping import Mapping
+from ..offline.foreign.twin import plot_twin, report_lines, twin_comparison
+from ..offline.options import (compression_of, gc_paused, load_params, open_recording,
+                               parse_sets, Progress, RunError)
 from ..offline.replay.resim import Resim
 from ..offline.run_events import EventLog
 from ..core.params import ScrewParams
@@ -26,14 +28,20 @@ HELP = 're-simulate a recording and compare'
 
 def add_arguments(p):
     """Add the options of ``resim`` to parser ``p``."""
-    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('file', help='the recording (MCAP file or rosbag2 bag directory)')
     p.add_argument('--set', action='append', metavar='NAME=VALUE',
                    help='override a recorded physics parameter (repeatable; YAML scalar in '
                    'the parameter\'s unit)')
     p.add_argument('--output', '-o', metavar='FILE.mcap',
-                   help='output MCAP (default <stem>.resim.mcap)')
+                   help='output MCAP (default <stem>.resim.mcap; a leadscrew_sim recording)')
     add_compression_argument(p)
     p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
+    g = add_mapping_arguments(p)
+    g.add_argument('--preset', help='the twin\'s parameters: a preset (a foreign recording)')
+    g.add_argument('--params', help='the twin\'s parameters: a ROS 2 parameter file (a '
+                   'foreign recording)')
+    g.add_argument('--plot', metavar='FILE.png', help='measured vs twin over time (a foreign '
+                   'recording)')
 
 
 def compare(sim, new):
@@ -182,10 +190,16 @@ def _run(args):
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
         raise RunError('resim --set accepts physics parameters only')
-    sim = Resim(open_recording(args.file, load_messages=False), phys_ov)
+    rec = open_recording(args.file, load_messages=False)
+    mapping = Mapping.from_args(args)
+    if mapping.given or args.preset or args.params or rec.record(PARAMS_RECORD) is None:
+        return _twin(args, rec, mapping, phys_ov)
+    sim = Resim(rec, phys_ov)
     src = Path(args.file)
     out = args.output or str(src.with_name(src.name[:-5] if src.name.endswith('.mcap')
                                            else src.name)) + '.resim.mcap'
+    if os.path.isdir(out):
+        raise RunError(f'--output {out} is a directory')
     if os.path.abspath(out) == os.path.abspath(args.file):
         raise RunError(f'--output {out} would overwrite the input file')
     w = RunWriter(out, sim.prefix, params=sim.params, compression=compression_of(args))
@@ -204,6 +218,24 @@ def _run(args):
         w.close()
     _report(args, sim, out, new, compared)
     print_events(log.events())
+    return 0
+
+
+def _twin(args, rec, mapping, phys_ov):
+    """Compare a foreign recording with its twin (``--preset``/``--params``); print, plot."""
+    rec.require_ros2()
+    if not (args.preset or args.params):
+        raise RunError(f'{args.file}: not a leadscrew_sim recording: give the twin\'s '
+                       'parameters (--preset NAME or --params FILE) and the mapping flags '
+                       f'(`leadscrew_sim info {args.file}` prints those that fit)')
+    params, label, _extra = load_params(args, phys_ov)
+    comp = twin_comparison(rec, params, mapping)
+    overrides = f' ({" ".join(args.set)})' if args.set else ''
+    for line in report_lines(comp, f' with {label}{overrides}'):
+        print(line)
+    if args.plot:
+        plot_twin(comp, args.plot)
+        print(f'wrote {args.plot}')
     return 0
 
 

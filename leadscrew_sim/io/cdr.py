@@ -343,3 +343,100 @@ def decode_wrench_stamped(data):
     r.string()
     v = [r.f64() for _ in range(6)]
     return stamp, tuple(v[:3]), tuple(v[3:])
+
+
+def decode_float64_multi_array(data):
+    """
+    Return the ``data`` of a serialized std_msgs/Float64MultiArray as a tuple.
+
+    The layout (its dimensions and data_offset) is read past: the commands of
+    ros2_control's forward_command_controller leave it empty.
+    """
+    r = CdrReader(data)
+    n_dim = r.u32()
+    if n_dim > len(data):
+        raise DecodeError('bad dimension count')
+    for _ in range(n_dim):
+        r.string()                      # label
+        r.u32()                         # size
+        r.u32()                         # stride
+    r.u32()                             # data_offset
+    return r.f64_seq()
+
+
+def decode_joint_trajectory(data):
+    """
+    Return (stamp_ns, joint names, points) of a serialized trajectory_msgs/JointTrajectory.
+
+    Each point is (positions, velocities, accelerations, effort,
+    time_from_start [ns]); the arrays are tuples (empty when not given).
+    """
+    r = CdrReader(data)
+    stamp = r.stamp()
+    r.string()                          # frame_id
+    n = r.u32()
+    if n > len(data):
+        raise DecodeError('bad joint name count')
+    names = [r.string() for _ in range(n)]
+    n_points = r.u32()
+    if n_points > len(data):
+        raise DecodeError('bad point count')
+    points = []
+    for _ in range(n_points):
+        pos, vel, acc, eff = r.f64_seq(), r.f64_seq(), r.f64_seq(), r.f64_seq()
+        sec, nsec = r._take('iI', 8, 4)
+        points.append((pos, vel, acc, eff, sec * NS + nsec))
+    return stamp, names, points
+
+
+def joint_state_columns(messages):
+    """
+    Return (stamps [ns] (n,), names, (n, m) positions, velocities, efforts) of JointStates.
+
+    When every message has the first one's names and array lengths (a
+    broadcaster's states), they are read at once through a :class:`Template`;
+    else message by message, an entry a message lacks (a short or empty
+    array, a joint it does not name) is NaN. ``messages``: list of bytes or a
+    uint8 array (n, L).
+    """
+    n = len(messages)
+    if not n:
+        return np.zeros(0, np.int64), [], np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0))
+    _s, names, pos, vel, eff = decode_joint_state(bytes(messages[0]))
+    m = len(names)
+    rows = messages if isinstance(messages, np.ndarray) else None
+    if rows is None:
+        lengths = {len(d) for d in messages}
+        if len(lengths) == 1:
+            rows = np.frombuffer(b''.join(messages), dtype=np.uint8).reshape(n, -1)
+    if rows is not None:
+        tmpl = joint_state_template(names, len(pos), len(vel), len(eff))
+        got = tmpl.columns(rows)
+        if got is not None:
+            sec = np.ndarray((n,), dtype='<i4', buffer=np.ascontiguousarray(rows),
+                             offset=tmpl.stamp_off, strides=(rows.shape[1],))
+            nsec = np.ndarray((n,), dtype='<u4', buffer=np.ascontiguousarray(rows),
+                              offset=tmpl.stamp_off + 4, strides=(rows.shape[1],))
+            stamps = sec.astype(np.int64) * NS + nsec.astype(np.int64)
+            out = []
+            at = 0
+            for length in (len(pos), len(vel), len(eff)):
+                block = np.full((n, m), np.nan)
+                block[:, :min(length, m)] = got[:, at:at + min(length, m)]
+                at += length
+                out.append(block)
+            return (stamps, names, *out)
+    stamps = np.empty(n, dtype=np.int64)
+    out = [np.full((n, m), np.nan) for _ in range(3)]
+    index = {name: j for j, name in enumerate(names)}
+    for i, d in enumerate(messages):
+        stamp, nm, *arrays = decode_joint_state(bytes(d))
+        stamps[i] = stamp
+        for j, name in enumerate(nm):
+            col = index.get(name)
+            if col is None:
+                continue
+            for block, a in zip(out, arrays):
+                if j < len(a):
+                    block[i, col] = a[j]
+    return (stamps, names, *out)

@@ -20,6 +20,7 @@ from ..core.fields import field_name
 from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, physics_subset, read_parameter_file
 from ..io.mcap_reader import Recording
+from ..io.rosbag2 import BagRecording, is_bag
 
 #: Nanoseconds per second.
 NS = 1_000_000_000
@@ -248,20 +249,23 @@ def gc_paused():
 
 def open_recording(path, **kwargs):
     """
-    Open a recording (:class:`leadscrew_sim.io.mcap_reader.Recording`), saying if it is cut.
+    Open a recording: one MCAP file or a rosbag2 bag directory, saying if it is cut.
 
-    A file cut short by a crash is read up to its last whole chunk, with one
-    warning line on stderr that names ``leadscrew_sim recover``.
+    A file is a :class:`leadscrew_sim.io.mcap_reader.Recording`, a directory a
+    :class:`leadscrew_sim.io.rosbag2.BagRecording` (its split files merged in
+    log-time order, the same attributes). A file cut short by a crash is read
+    up to its last whole chunk, with one warning line on stderr that names
+    ``leadscrew_sim recover``.
 
     Parameters
     ----------
     path : str or Path
-        The MCAP file.
+        The MCAP file or the bag directory.
     **kwargs
         ``topics``, ``load_messages``: as Recording takes them.
 
     """
-    rec = Recording(path, **kwargs)
+    rec = BagRecording(path, **kwargs) if is_bag(path) else Recording(path, **kwargs)
     if rec.cut:
         print(f'leadscrew_sim: warning: {path} is cut short or damaged ({rec.cut}); '
               f'`leadscrew_sim recover {path}` writes a complete copy', file=sys.stderr)

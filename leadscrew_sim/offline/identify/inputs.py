@@ -1,15 +1,16 @@
 """
 The inputs of ``identify``: starting values, fitted names, measured signals, foreign recordings.
 
-A recording of another source (:class:`ForeignReplay`) is a JointState state
-topic and a command topic, mapped by the options; its steps and commands
-go through the node's command rules as a leadscrew_sim recording's do.
+A recording of another source (:class:`ForeignReplay`, of
+:mod:`leadscrew_sim.offline.foreign.replay`) is a JointState state topic and
+a command topic, mapped by the options; its steps and commands go through the
+node's command rules as a leadscrew_sim recording's do.
 """
 import numpy as np
 
-from ..options import load_params, NS, parse_sets, RunError
+from ..foreign.replay import ForeignReplay  # noqa: F401 - imported from here
+from ..options import load_params, parse_sets, RunError
 from ...analysis.identify import fit as ident
-from ...core.commands import CommandHold, NutMap
 from ...core.params import ScrewParams
 from ...core.presets import load_preset, preset_names
 from ...io import cdr as C
@@ -241,95 +242,6 @@ def quantisation(params):
     if params.linear_scale and params.scale_resolution:
         out['nut_position'] = params.scale_resolution / np.sqrt(12.0)
     return out
-
-
-class ForeignReplay:
-    """
-    A recording of another source: JointState states and drive commands on mapped topics.
-
-    The steps run at ``--step-rate`` from the first command's log time; every
-    command goes through :class:`CommandHold` (the node's rules), the states
-    are matched to steps by their stamps.
-    """
-
-    def __init__(self, args, rec, params):
-        """Find the topics and joints and collect the commands and states."""
-        self.path = rec.path
-        self.dt_ns = int(round(NS / (args.rate or 1000.0)))
-        self.params = params
-        state = args.state_topic or rec.role_topic('joint_states')
-        self.state_topic = _topic(rec, state, '--state-topic')
-        if rec.topic_types.get(self.state_topic) != 'sensor_msgs/msg/JointState':
-            raise RunError(f'--state-topic {self.state_topic}: type '
-                           f'{rec.topic_types.get(self.state_topic)!r}, expected '
-                           'sensor_msgs/msg/JointState')
-        if args.command_topic is None:
-            raise RunError('--command-topic: a foreign recording needs the command topic '
-                           '(and --command-kind for a Float64 topic)')
-        self.command_topic = _topic(rec, args.command_topic, '--command-topic')
-        ctype = rec.topic_types.get(self.command_topic)
-        if ctype == 'std_msgs/msg/Float64' and args.command_kind is None:
-            raise RunError('--command-kind: give torque, velocity or position for the Float64 '
-                           f'topic {self.command_topic}')
-        if ctype not in ('std_msgs/msg/Float64', 'sensor_msgs/msg/JointState'):
-            raise RunError(f'--command-topic {self.command_topic}: type {ctype!r}, expected '
-                           'std_msgs/msg/Float64 or sensor_msgs/msg/JointState')
-        self.kind = args.command_kind
-        self.joints = (args.screw_joint or 'screw_joint', args.nut_joint or 'nut_joint')
-        self.commands = [(t, d) for t, topic, d in rec.messages if topic == self.command_topic]
-        self.states = [(t, d) for t, topic, d in rec.messages if topic == self.state_topic]
-        if not self.commands:
-            raise RunError(f'{rec.path}: no messages on the command topic {self.command_topic}')
-        self.t0 = self.commands[0][0]
-        last = max(t for t, _d in self.states) if self.states else self.t0
-        self.n_steps = max(0, (last - self.t0) // self.dt_ns)
-        self._inputs = None
-
-    def inputs(self):
-        """Return (segments, command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
-        if self._inputs is not None:
-            return self._inputs
-        from ...core.model import LeadScrewModel
-        model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
-        hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
-        rows = np.empty((self.n_steps, 4))
-        cmds, i = self.commands, 0
-        screw, nut = self.joints
-        for k in range(self.n_steps):
-            t_k = self.t0 + k * self.dt_ns
-            while i < len(cmds) and cmds[i][0] <= t_k:
-                data = cmds[i][1]
-                i += 1
-                if self.kind is not None and len(data) == 12:
-                    getattr(hold, f'{self.kind}_command')(C.decode_float64(data), t_k)
-                else:
-                    _s, names, pos, vel, eff = C.decode_joint_state(data)
-                    names = [{screw: 'screw_joint', nut: 'nut_joint'}.get(n, n) for n in names]
-                    hold.joint_commands(names, pos, vel, eff, t_k)
-            rows[k] = hold.command_at(t_k)
-        self._inputs = ([], rows, np.zeros(self.n_steps))
-        return self._inputs
-
-    def replay(self, overrides, n=None):
-        """Return the columns of ``model.run`` of the first ``n`` steps (all: None)."""
-        from ...core.model import LeadScrewModel
-        params = ScrewParams.from_dict(overrides, base=self.params)
-        _seg, rows, forces = self.inputs()
-        return LeadScrewModel(params, dt=self.dt_ns / NS).run(None, forces[:n],
-                                                              commands=rows[:n])
-
-    def measured(self):
-        """Return the recorded screw angle, nut position and motor torque per step (NaN: none)."""
-        return _decode_states(self.states, self.t0, self.dt_ns, self.n_steps, *self.joints)
-
-
-def _topic(rec, name, option):
-    """Return the recorded topic ``name`` (relative names match any namespace)."""
-    for topic in rec.topic_types:
-        if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
-            return topic
-    raise RunError(f"{option} {name}: no such topic in {rec.path} (topics: "
-                   f"{', '.join(sorted(rec.topic_types))})")
 
 
 def _decode_states(states, t0, dt_ns, n, screw, nut):

@@ -1,0 +1,290 @@
+"""
+The commands of a foreign recording: decoded by type and sampled on the step grid.
+
+- ``std_msgs/Float64``: one value, what ``--command-kind`` says (motor torque
+  [N m], nut velocity [m/s] or nut position [m]).
+- ``std_msgs/Float64MultiArray`` (forward_command_controller): entry
+  ``--command-index`` of ``data``, of ``--command-kind``.
+- ``sensor_msgs/JointState``: the position, velocity and effort of
+  ``--command-joint``, through the node's mode rule (:class:`CommandHold`).
+- ``trajectory_msgs/JointTrajectory`` (joint_trajectory_controller): the
+  position of ``--command-joint`` sampled at every step as the controller
+  samples it: the points lie at the header stamp (the receipt time when the
+  stamp is zero) plus their ``time_from_start``; between two points linear in
+  position, cubic Hermite where both carry velocities; from the receipt to
+  the first point from the position (and velocity) held then; after the last
+  point its position held. A new trajectory replaces the old one from its
+  receipt. Accelerations are not used (the controller's quintic segments
+  are taken as cubic).
+
+A command is placed at its log time (its receipt) plus the command-to-state
+delay and acts from the first step that starts at or after then
+(:func:`leadscrew_sim.core.commands.first_step`). A non-finite value is
+counted and skipped, as the node rejects it.
+"""
+import numpy as np
+
+from .mapping import FLOAT64, JOINT_STATE, MULTI_ARRAY, TRAJECTORY
+from ..options import NS, RunError
+from ...core.commands import first_step
+from ...core.drive_modes import MODE_POSITION, MODE_TORQUE
+from ...io import cdr as C
+
+_NAN = float('nan')
+
+
+class Commands:
+    """
+    The decoded commands of the mapped command topic.
+
+    Attributes
+    ----------
+    times : numpy.ndarray of int64
+        Receipt (log) time of each kept command [ns].
+    kind : str
+        ``scalar`` (Float64, Float64MultiArray), ``joint`` (JointState) or
+        ``trajectory``.
+    skipped : int
+        Commands not taken: non-finite values (as the node rejects them).
+    role : str
+        ``screw`` or ``nut``: the joint a JointState or trajectory command moves.
+
+    """
+
+    def __init__(self, topic, ctype, arrays, mapping, joints, path=''):
+        """Decode the messages ``arrays`` (TopicArrays) of ``topic`` of type ``ctype``."""
+        self.topic, self.ctype, self.path = topic, ctype, path
+        self.command_kind = mapping.command_kind
+        self.skipped = 0
+        self.role = None
+        datas = arrays.messages()
+        times = np.asarray(arrays.log_times, dtype=np.int64)
+        if not len(datas):
+            raise RunError(f'{path}: no messages on the command topic {topic}')
+        try:
+            if ctype in (FLOAT64, MULTI_ARRAY):
+                self._scalars(ctype, datas, times, mapping)
+            elif ctype == JOINT_STATE:
+                self._joint_states(datas, times, mapping, joints)
+            elif ctype == TRAJECTORY:
+                self._trajectories(datas, times, mapping, joints)
+            else:
+                raise RunError(f'--command-topic {topic}: type {ctype!r} is not read (read: '
+                               f'{", ".join((FLOAT64, MULTI_ARRAY, JOINT_STATE, TRAJECTORY))})')
+        except C.DecodeError as exc:
+            raise RunError(f'{path}: a message on {topic} is not a valid {ctype} '
+                           f'({exc})') from None
+        if not len(self.times):
+            raise RunError(f'{path}: no finite commands on {topic} ({self.skipped} '
+                           'non-finite skipped)')
+
+    def _scalars(self, ctype, datas, times, mapping):
+        if self.command_kind is None:
+            raise RunError(f'--command-kind: give torque, velocity or position for the '
+                           f'{ctype.split("/")[-1]} topic {self.topic}')
+        self.kind = 'scalar'
+        if ctype == FLOAT64:
+            values = C.decode_float64s(datas)
+        else:
+            index = mapping.command_index if mapping.command_index is not None else 0
+            values = np.empty(len(datas))
+            for i, d in enumerate(datas):
+                a = C.decode_float64_multi_array(bytes(d))
+                if index >= len(a):
+                    raise RunError(f'--command-index {index}: past the array of message {i} on '
+                                   f'{self.topic} ({len(a)} entries: give 0 .. {len(a) - 1})')
+                values[i] = a[index]
+        ok = np.isfinite(values)
+        self.skipped = int(np.count_nonzero(~ok))
+        self.times, self.values = times[ok], values[ok]
+
+    def _joint(self, names, mapping, joints):
+        """Return (the command joint's name, its role) among the command's ``names``."""
+        screw, nut = joints
+        name = mapping.command_joint
+        if name is None:
+            name = nut if nut in names else screw if screw in names else None
+            if name is None:
+                raise RunError(f'--command-joint: the commands on {self.topic} name '
+                               f'{", ".join(names) or "no joint"}; give the one to take')
+        if name not in names:
+            raise RunError(f'--command-joint {name}: not in the commands on {self.topic} '
+                           f'(joints: {", ".join(names) or "none"})')
+        if name not in (screw, nut):
+            raise RunError(f'--command-joint {name}: is neither --screw-joint {screw} nor '
+                           f'--nut-joint {nut}')
+        return name, 'nut' if name == nut else 'screw'
+
+    def _joint_states(self, datas, times, mapping, joints):
+        self.kind = 'joint'
+        name = None
+        items, kept = [], []
+        for t, d in zip(times, datas):
+            _s, names, pos, vel, eff = C.decode_joint_state(bytes(d))
+            if name is None:
+                name, self.role = self._joint(names, mapping, joints)
+            if name not in names:
+                self.skipped += 1
+                continue
+            j = names.index(name)
+            vals = [a[j] if j < len(a) else _NAN for a in (pos, vel, eff)]
+            if not any(np.isfinite(vals)):
+                self.skipped += 1
+                continue
+            items.append(vals)
+            kept.append(t)
+        self.times = np.array(kept, dtype=np.int64)
+        self.values = np.array(items, dtype=float).reshape(-1, 3)
+
+    def _trajectories(self, datas, times, mapping, joints):
+        self.kind = 'trajectory'
+        name = None
+        self.trajectories, kept = [], []
+        for t, d in zip(times, datas):
+            stamp, names, points = C.decode_joint_trajectory(bytes(d))
+            if name is None:
+                name, self.role = self._joint(names, mapping, joints)
+            if name not in names or not points:
+                self.skipped += 1
+                continue
+            j = names.index(name)
+            start = stamp if stamp else int(t)
+            at = np.array([start + p[4] for p in points], dtype=np.int64)
+            pos = np.array([p[0][j] if j < len(p[0]) else _NAN for p in points])
+            vel = np.array([p[1][j] if j < len(p[1]) else _NAN for p in points])
+            if not np.isfinite(pos).all() or (np.diff(at) <= 0).any():
+                self.skipped += 1
+                continue
+            self.trajectories.append((at, pos, vel if np.isfinite(vel).all() else None))
+            kept.append(t)
+        self.times = np.array(kept, dtype=np.int64)
+
+    def rate(self):
+        """Return the median command rate [Hz] (0 for a single command)."""
+        if self.kind == 'trajectory' or len(self.times) < 2:
+            return 0.0
+        d = np.diff(self.times)
+        d = d[d > 0]
+        return float(NS / np.median(d)) if len(d) else 0.0
+
+    def span(self):
+        """Return (first, last) time a command sets [ns]: receipts, or the trajectories' ends."""
+        last = int(self.times[-1])
+        if self.kind == 'trajectory':
+            last = max(last, max(int(a[-1]) for a, _p, _v in self.trajectories))
+        return int(self.times[0]), last
+
+    def rows(self, t0, dt_ns, n, hold, delay_ns, start=None):
+        """
+        Return the drive commands (n, 4) of steps 0 .. n - 1 of the grid from ``t0`` [ns].
+
+        ``hold`` (a :class:`CommandHold`) applies the node's rules and maps
+        nut values to the motor; ``delay_ns`` shifts every command; ``start``
+        is the position [m or rad] held before the first trajectory point.
+        Steps before the first command hold zero torque.
+        """
+        rows = np.empty((n, 4))
+        rows[:] = (MODE_TORQUE, _NAN, _NAN, 0.0)
+        if n <= 0:
+            return rows
+        ks = first_step(self.times + delay_ns, t0, dt_ns)
+        if self.kind == 'scalar':
+            cmd = hold.take_series(f'{self.command_kind}_command', self.values, self.times)
+            if cmd is None:
+                cmd = np.array([_one(hold, f'{self.command_kind}_command', v, int(t))
+                                for v, t in zip(self.values, self.times)]).reshape(-1, 4)
+            return _held(rows, ks, cmd)
+        if self.kind == 'joint':
+            label = 'nut_joint' if self.role == 'nut' else 'screw_joint'
+            cmd = np.empty((len(self.times), 4))
+            for i, (t, (p, v, e)) in enumerate(zip(self.times, self.values)):
+                hold.joint_commands([label], [p], [v], [e], int(t))
+                cmd[i] = hold.command_at(int(t))
+            return _held(rows, ks, cmd)
+        targets = self.sample(t0 - delay_ns, dt_ns, n, ks, start)
+        ok = np.isfinite(targets)
+        if self.role == 'nut':
+            theta = hold.nut_map.position(targets[ok])
+        else:
+            theta = targets[ok]
+        rows[ok] = (MODE_POSITION, 0.0, _NAN, 0.0)
+        rows[ok, 1] = theta
+        return rows
+
+    def sample(self, t0, dt_ns, n, ks, start=None):
+        """
+        Return the trajectories' position [m or rad] at each step's start (NaN before the first).
+
+        Step k samples at ``t0 + k dt``; trajectory i is in force from step
+        ``ks[i]`` until the next one's.
+        """
+        out = np.full(n, _NAN)
+        held_p, held_v = (start if start is not None else _NAN), 0.0
+        for i, (at, pos, vel) in enumerate(self.trajectories):
+            k0 = max(0, int(ks[i]))
+            k1 = n if i + 1 == len(self.trajectories) else min(n, max(k0, int(ks[i + 1])))
+            if k0 >= n:
+                break
+            if k1 <= k0:
+                continue
+            t = t0 + np.arange(k0, k1, dtype=np.int64) * dt_ns
+            t_recv = t0 + k0 * dt_ns
+            if not np.isfinite(held_p):
+                held_p = pos[0]
+            # the segment from the receipt to the first point starts at the held position
+            if at[0] > t_recv:
+                at_all = np.concatenate([[t_recv], at])
+                pos_all = np.concatenate([[held_p], pos])
+                vel_all = None if vel is None else np.concatenate([[held_v], vel])
+            else:
+                at_all, pos_all, vel_all = at, pos, vel
+            out[k0:k1], last_v = _piecewise(t, at_all, pos_all, vel_all)
+            held_p, held_v = out[k1 - 1], last_v
+        return out
+
+
+def _one(hold, kind, value, t):
+    """Return the drive command row after one Float64 command through ``hold``."""
+    getattr(hold, kind)(float(value), t)
+    return hold.command_at(t)
+
+
+def _held(rows, ks, cmd):
+    """Fill ``rows`` from each command's first step on with its row (the last of a step wins)."""
+    n = len(rows)
+    steps = np.arange(n)
+    idx = np.searchsorted(ks, steps, side='right') - 1
+    ok = idx >= 0
+    rows[ok] = cmd[idx[ok]]
+    return rows
+
+
+def _piecewise(t, at, pos, vel):
+    """
+    Return (positions at times ``t`` [ns], the velocity at the last of them) of one trajectory.
+
+    Linear between points, cubic Hermite where ``vel`` is given; held before
+    the first and after the last point.
+    """
+    out = np.empty(len(t))
+    i = np.searchsorted(at, t, side='right') - 1
+    before, after = i < 0, i >= len(at) - 1
+    out[before] = pos[0]
+    out[after] = pos[-1]
+    mid = ~(before | after)
+    j = i[mid]
+    h = (at[j + 1] - at[j]) / NS
+    s = (t[mid] - at[j]) / NS / h
+    if vel is None:
+        out[mid] = pos[j] + s * (pos[j + 1] - pos[j])
+        slope = (pos[j + 1] - pos[j]) / h
+    else:
+        h00, h10 = 2 * s ** 3 - 3 * s ** 2 + 1, s ** 3 - 2 * s ** 2 + s
+        h01, h11 = -2 * s ** 3 + 3 * s ** 2, s ** 3 - s ** 2
+        out[mid] = h00 * pos[j] + h10 * h * vel[j] + h01 * pos[j + 1] + h11 * h * vel[j + 1]
+        slope = ((6 * s ** 2 - 6 * s) * pos[j] + (3 * s ** 2 - 4 * s + 1) * h * vel[j]
+                 + (-6 * s ** 2 + 6 * s) * pos[j + 1] + (3 * s ** 2 - 2 * s) * h * vel[j + 1]) / h
+    last_v = 0.0
+    if len(t) and mid[-1]:
+        last_v = float(slope[-1])
+    return out, last_v

@@ -1,0 +1,301 @@
+"""
+Re-simulating a foreign recording: its mapped commands through the model, on a grid of steps.
+
+The grid starts at the first command's time plus the command-to-state delay
+and steps at ``--step-rate`` (default 1 kHz, or the command rate where
+faster). The commands go through the node's rules
+(:class:`~leadscrew_sim.core.commands.CommandHold`) and act from their time on
+the grid (:mod:`.commands`). The state after step k lies at
+``t0 + (k + 1) dt``; a recorded state at stamp s is compared with the
+re-simulation *at s*: between the two steps around s, positions by cubic
+Hermite interpolation with the re-simulated velocities as slopes (error of
+order dt^4 times the fourth derivative, far below any encoder's noise at
+1 kHz), other signals linearly. Taking the nearest step instead would err
+by up to half a step times the velocity (10 mrad at 20 rad/s and 1 kHz),
+more than a fine encoder's noise.
+"""
+import numpy as np
+
+from . import delay as D
+from .commands import Commands
+from .mapping import DEFAULT_STEP_RATE, JOINT_STATE, Mapping
+from .states import COLUMNS, States
+from ..options import NS, RunError
+from ...core.commands import CommandHold, NutMap
+from ...core.params import ParameterError, ScrewParams
+
+#: Slope column of each position column (model.run names).
+SLOPES = {'sensor_screw_angle': 'motor_velocity', 'sensor_nut_position': 'nut_velocity',
+          'motor_angle': 'motor_velocity', 'nut_position': 'nut_velocity'}
+
+#: Signals compared with an offset removed (an encoder's zero is arbitrary).
+OFFSET_SIGNALS = ('screw_angle',)
+
+
+def find_topic(rec, name, option):
+    """Return the recorded topic ``name`` (relative names match any namespace)."""
+    for topic in rec.topic_types:
+        if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
+            return topic
+    raise RunError(f"{option} {name}: no such topic in {rec.path} (topics: "
+                   f"{', '.join(sorted(rec.topic_types))})")
+
+
+class ForeignReplay:
+    """
+    A foreign recording mapped onto the model: its states, its commands, the grid and the delay.
+
+    Parameters
+    ----------
+    mapping : Mapping or argparse.Namespace
+        The mapping (options are turned into one by :meth:`Mapping.from_args`).
+    rec : Recording
+        The recording (its messages need not be loaded).
+    params : ScrewParams
+        The axis's parameters (initial_position is set from the measured nut
+        position at the start, :meth:`_start_position`).
+    estimate_delay : bool
+        Estimate the delay with ``params`` when the mapping does not set it
+        (one re-simulation; :mod:`.delay`). Else it is 0 unless set: an
+        estimate with parameters far from the axis's is biased (the twin's
+        lag then differs), so ``identify`` fits at the delay it is given.
+
+    Attributes
+    ----------
+    states : States
+    commands : Commands
+    t0 : int
+        Grid start [ns] (first command time + delay).
+    dt_ns : int
+        Step [ns].
+    n_steps : int
+    delay : Delay
+
+    """
+
+    def __init__(self, mapping, rec, params, estimate_delay=False):
+        """Find the topics and joints, read the states and commands, set the grid."""
+        m = mapping if isinstance(mapping, Mapping) else Mapping.from_args(mapping)
+        self.mapping, self.path, self.rec = m, rec.path, rec
+        self.state_topic = find_topic(rec, m.state_topic or 'joint_states', '--state-topic')
+        stype = rec.topic_types.get(self.state_topic)
+        if stype != JOINT_STATE:
+            raise RunError(f'--state-topic {self.state_topic}: type {stype!r}, expected '
+                           f'{JOINT_STATE}')
+        if m.command_topic is None:
+            raise RunError('--command-topic: a foreign recording needs the command topic '
+                           f'(`leadscrew_sim info {rec.path}` lists the topics and the '
+                           'mapping flags that fit)')
+        self.command_topic = find_topic(rec, m.command_topic, '--command-topic')
+        arrays = rec.topic_arrays([self.state_topic, self.command_topic])
+        self.joints = (m.screw_joint or 'screw_joint', m.nut_joint or 'nut_joint')
+        names = _state_names(arrays[self.state_topic])
+        screw = self.joints[0] if (m.screw_joint or self.joints[0] in names) else None
+        nut = self.joints[1] if (m.nut_joint or self.joints[1] in names) else None
+        if screw is None and nut is None:
+            raise RunError(f'--screw-joint/--nut-joint: the states on {self.state_topic} name '
+                           f'{", ".join(names) or "no joint"}; give the screw or the nut joint')
+        self.states = States(self.state_topic, arrays[self.state_topic], screw, nut, rec.path)
+        self.commands = Commands(self.command_topic, rec.topic_types.get(self.command_topic),
+                                 arrays[self.command_topic], m, self.joints, rec.path)
+        first, last = self.commands.span()
+        s0, s1 = int(self.states.stamps[0]), int(self.states.stamps[-1])
+        if s1 < first or s0 > last + 10 * NS:
+            raise RunError(f'{rec.path}: no overlap between the commands on '
+                           f'{self.command_topic} ({first / NS:.3f} .. {last / NS:.3f} s) and '
+                           f'the states on {self.state_topic} ({s0 / NS:.3f} .. {s1 / NS:.3f} s)')
+        rate = m.step_rate or max(DEFAULT_STEP_RATE, round(self.commands.rate()))
+        self.dt_ns = int(round(NS / rate))
+        self.first = first
+        self.x0 = self._start_position()
+        try:
+            self.params = ScrewParams.from_dict({'initial_position': self.x0}, base=params) \
+                if self.x0 is not None else params
+        except ParameterError as exc:
+            raise RunError(f'{rec.path}: the first measured nut position: {exc}') from None
+        self._inputs = None
+        self.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
+                       else D.Delay(0.0, float('nan'), 'not determined'))
+        if m.command_delay is None and estimate_delay:
+            self.set_delay(self.estimate_delay())
+
+    def _start_position(self):
+        """
+        Return the nut position the recording starts at [m] (None without nut positions).
+
+        The median of the measured nut positions before the first motion (the
+        first state alone when the recording starts moving): the noise of one
+        reading would otherwise shift the twin's start.
+        """
+        from .twin import motion_segments
+        x = self.states.values.get('nut_position')
+        if x is None or not np.isfinite(x).any():
+            return None
+        time = (self.states.stamps - self.states.stamps[0]) / NS
+        segments = motion_segments(time, {'nut_position': x}, np.isfinite(x))
+        first = segments[0][0] if segments else 0
+        before = x[:first][np.isfinite(x[:first])]
+        return float(np.median(before)) if len(before) else float(x[np.isfinite(x)][0])
+
+    # ------------------------------------------------------------------ grid
+    def set_delay(self, delay):
+        """Use the command-to-state ``delay`` (a Delay): the grid moves with it."""
+        self.delay = delay
+        self.t0 = self.first + int(round(delay.value * NS))
+        last = int(self.states.stamps[-1])
+        self.n_steps = max(0, (last - self.t0) // self.dt_ns + 1)
+        rel = self.states.stamps - self.t0
+        k = rel // self.dt_ns - 1                 # the step whose state lies at or before
+        ok = (k >= 0) & (k < self.n_steps - 1)
+        later = np.append(k[1:] != k[:-1], True)    # one state per step: the later one
+        self.use = np.flatnonzero(ok & later)
+        self.k = k[self.use]
+        self.frac = (rel[self.use] - (self.k + 1) * self.dt_ns) / self.dt_ns
+        self.merged = int(np.count_nonzero(ok & ~later))
+        self._inputs = None
+
+    def estimate_delay(self):
+        """Return the Delay estimated with the parameters (one re-simulation at delay 0)."""
+        saved = self.delay
+        self.set_delay(D.Delay(0.0, 0.0, 'trial'))
+        cols = self.replay({}, interpolate=False)
+        name = 'nut_position' if 'nut_position' in self.states.values else 'screw_angle'
+        if name not in self.states.values:
+            self.set_delay(saved)
+            return D.Delay(0.0, float('nan'), 'not determined')
+        column = COLUMNS[name]
+        y = self.states.values[name]
+        ok = np.isfinite(y)
+        rel = self.states.stamps[ok] - self.t0
+
+        def sim_at(t):
+            return at_times(cols, column, self.dt_ns, t, slope=True)
+        est = D.estimate(rel, y[ok], sim_at, name, offset=name in OFFSET_SIGNALS,
+                         dt=self.dt_ns / NS)
+        self.set_delay(saved)
+        return est
+
+    # ---------------------------------------------------------------- inputs
+    def inputs(self):
+        """Return (segments [], command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
+        if self._inputs is None:
+            from ...core.model import LeadScrewModel
+            model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
+            hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
+            start = None
+            if self.commands.kind == 'trajectory':
+                name = 'nut_position' if self.commands.role == 'nut' else 'screw_angle'
+                v = self.states.values.get(name)
+                start = float(v[np.isfinite(v)][0]) if v is not None and \
+                    np.isfinite(v).any() else None
+            rows = self.commands.rows(self.t0, self.dt_ns, self.n_steps, hold,
+                                      int(round(self.delay.value * NS)), start)
+            self._inputs = ([], rows, np.zeros(self.n_steps))
+        return self._inputs
+
+    def model(self, overrides=None):
+        """Return a new model with the parameters and ``overrides``."""
+        from ...core.model import LeadScrewModel
+        params = ScrewParams.from_dict(self._fixed(overrides), base=self.params)
+        return LeadScrewModel(params, dt=self.dt_ns / NS)
+
+    def _fixed(self, overrides):
+        """Return ``overrides`` with the initial position the recording starts at."""
+        out = dict(overrides or {})
+        if self.x0 is not None:
+            out['initial_position'] = self.x0
+        return out
+
+    def replay(self, overrides, n=None, interpolate=True):
+        """
+        Return the columns of ``model.run`` of the first ``n`` steps (all: None).
+
+        With ``interpolate``, at each step that has a recorded state the
+        sensor columns hold the re-simulation at that state's stamp
+        (see the module), so that they compare with :meth:`measured`.
+        """
+        _seg, rows, forces = self.inputs()
+        try:
+            cols = self.model(overrides).run(None, forces[:n], commands=rows[:n])
+        except ParameterError as exc:
+            raise RunError(f're-simulation with {overrides}: {exc}') from None
+        if not interpolate:
+            return cols
+        cols = dict(cols)
+        n_run = len(rows[:n])
+        use = self.k < n_run - 1
+        for column in ('sensor_screw_angle', 'sensor_nut_position', 'motor_torque',
+                       'sensor_screw_velocity', 'sensor_nut_velocity', 'axial_force'):
+            if column not in cols:
+                continue
+            c = np.array(cols[column], dtype=float)
+            c[self.k[use]] = between(cols, column, self.k[use], self.frac[use], self.dt_ns)
+            cols[column] = c
+        return cols
+
+    def measured(self):
+        """Return the measured screw angle, nut position and motor torque per step (NaN: none)."""
+        out = {}
+        for name in ('screw_angle', 'nut_position', 'motor_torque'):
+            a = np.full(self.n_steps, np.nan)
+            v = self.states.values.get(name)
+            if v is not None:
+                a[self.k] = v[self.use]
+            out[name] = a
+        return out
+
+
+def _state_names(arrays):
+    """Return the joint names of the first state message (none without messages)."""
+    from ...io import cdr as C
+    if not len(arrays.log_times):
+        return []
+    try:
+        return C.decode_joint_state(bytes(arrays.messages()[0]))[1]
+    except C.DecodeError:
+        return []
+
+
+def between(cols, column, k, frac, dt_ns):
+    """
+    Return ``column`` between the states after steps k and k + 1, at ``frac`` of the step.
+
+    Positions by cubic Hermite with the re-simulated velocities as slopes,
+    the rest linearly.
+    """
+    y = np.asarray(cols[column], dtype=float)
+    y0, y1 = y[k], y[k + 1]
+    slope = SLOPES.get(column)
+    if slope is None:
+        return y0 + frac * (y1 - y0)
+    v = np.asarray(cols[slope], dtype=float) * (dt_ns / NS)
+    s = frac
+    return ((2 * s ** 3 - 3 * s ** 2 + 1) * y0 + (s ** 3 - 2 * s ** 2 + s) * v[k]
+            + (-2 * s ** 3 + 3 * s ** 2) * y1 + (s ** 3 - s ** 2) * v[k + 1])
+
+
+def at_times(cols, column, dt_ns, rel_ns, slope=False):
+    """
+    Return the re-simulated ``column`` at times ``rel_ns`` [ns] after the grid start.
+
+    NaN outside the steps run. With ``slope`` also its time derivative [unit/s]
+    (the velocity column of a position, else the difference quotient).
+    """
+    y = np.asarray(cols[column], dtype=float)
+    n = len(y)
+    kf = np.asarray(rel_ns, dtype=np.int64)
+    k = kf // dt_ns - 1
+    frac = (kf - (k + 1) * dt_ns) / dt_ns
+    ok = (k >= 0) & (k < n - 1)
+    out = np.full(len(kf), np.nan)
+    out[ok] = between(cols, column, k[ok], frac[ok], dt_ns)
+    if not slope:
+        return out
+    d = np.full(len(kf), np.nan)
+    name = SLOPES.get(column)
+    if name is not None:
+        v = np.asarray(cols[name], dtype=float)
+        d[ok] = v[k[ok]] + frac[ok] * (v[k[ok] + 1] - v[k[ok]])
+    else:
+        d[ok] = (y[k[ok] + 1] - y[k[ok]]) / (dt_ns / NS)
+    return out, d
