@@ -6,7 +6,7 @@ from ..core import geometry
 
 NS = 1_000_000_000
 
-__all__ = ['diagnostic_array', 'LOST_STEPS_KEY', 'stamp_msg', 'stepper_values']
+__all__ = ['diagnostic_array', 'live_view_values', 'LOST_STEPS_KEY', 'stamp_msg', 'stepper_values']
 
 
 def stamp_msg(stamp_ns):
@@ -20,7 +20,8 @@ def _us(ns):
 
 
 def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, target_rate,
-                     command_age, stale, loop, lateness, counts, recorder, dropped=(0, 0)):
+                     command_age, stale, loop, lateness, counts, recorder, dropped=(0, 0),
+                     live=None):
     """
     Return the DiagnosticArray of one window.
 
@@ -50,6 +51,8 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         The recorder (``status()``, ``active``, ``dropped``).
     dropped : tuple of int
         (commands, state samples) lost to the injected drop rates so far.
+    live : dict, optional
+        The Foxglove live view's counters (``LiveView.status()``), when it runs.
 
     """
     p, m = params, model
@@ -85,6 +88,8 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
                ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1]))]
     if stepper is not None:
         values += stepper_values(stepper, p)
+    if live is not None:
+        values += live_view_values(live)
     status = DiagnosticStatus(level=level, name=f'{name}: lead screw axis', message=msg,
                               hardware_id=f'leadscrew_sim/{preset}',
                               values=[KeyValue(key=k, value=v) for k, v in values])
@@ -126,6 +131,34 @@ def stepper_values(stepper, p):
         (LOST_STEPS_KEY, str(stepper['lost_full_steps'])),
         ('lost_full_steps_note', LOST_STEPS_NOTE),
     ]
+
+
+#: The live view's counters in the diagnostics: key -> counter of ``LiveView.status()``.
+LIVE_VIEW_KEYS = (
+    ('foxglove_subscriptions', 'subscriptions'),
+    ('foxglove_sent', 'sent'),
+    ('foxglove_dropped', 'queue_dropped'),
+    ('foxglove_outbox_full_reports', 'outbox_full_reports'),
+    ('foxglove_bad_frames', 'bad_frames'),
+    ('foxglove_unknown_channels', 'unknown_channels'),
+    ('foxglove_oversized', 'oversized'),
+    ('foxglove_refused', 'refused'),
+    ('foxglove_malformed', 'malformed'),
+    ('foxglove_client_messages', 'client_messages'),
+    ('foxglove_inbox_dropped', 'inbox_dropped'),
+)
+
+
+def live_view_values(live):
+    """
+    Return the (key, value) pairs of the Foxglove live view's counters.
+
+    ``foxglove_dropped``: messages the node's serving queue dropped (the
+    loop never waits for a client). The SDK drops a slow client's oldest
+    messages from its outbox without a count: ``foxglove_outbox_full_reports``
+    counts its reports of that (at most one every 30 s).
+    """
+    return [(key, str(live.get(name, 0))) for key, name in LIVE_VIEW_KEYS]
 
 
 def _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age, stale,

@@ -26,7 +26,9 @@ through :mod:`.commands` into a :class:`~leadscrew_sim.core.commands.CommandHold
 each tick steps the model and hands the encoded states to the publishers and
 the recorder (:mod:`leadscrew_sim.io.recorder`). Topics and QoS come from
 :data:`leadscrew_sim.io.topics.TOPIC_SPECS`; parameters: :mod:`.parameters`;
-diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`.
+diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`. With
+``foxglove_port`` the messages also go to the live view (:mod:`.foxglove_live`,
+imported only then): ``self.sink`` is where every message's bytes go.
 """
 import json
 import math
@@ -61,8 +63,8 @@ from .diagnostics import diagnostic_array
 from .interfaces import message_class, qos_profile
 from .loops import ClockLoops
 from .services import AxisServices
-from .parameters import (DEFAULT_PRESET, declare_parameters, integers_as_doubles, StartupError,
-                         validate_changes)
+from .parameters import (declare_live_view, DEFAULT_PRESET, declare_parameters,
+                         integers_as_doubles, StartupError, validate_changes)
 from .timing import LoopStats
 
 __all__ = ['COMMAND_QOS', 'DEFAULT_PRESET', 'LeadScrewSimNode', 'main', 'make_executor',
@@ -103,8 +105,13 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
 
         self.loop = LoopStats(keep_all=bool(s.stats_file))
         self.recorder = Recorder(self.get_logger())
+        self.sink = self.recorder           # where the messages go (see _start_live_view)
+        self._live = None
+        live_host, live_port = declare_live_view(self)
         self._build_interfaces()
         self._build_description()
+        if live_port:
+            self._start_live_view(live_host, live_port)
         self.add_pre_set_parameters_callback(integers_as_doubles)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         p = self.params
@@ -192,13 +199,17 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
                 self.get_logger().info('recording stopped')
 
     # -- ROS interfaces ------------------------------------------------------
+    def command_callbacks(self):
+        """Return {command topic: callback taking the CDR bytes} (ROS and the live view)."""
+        return {'torque_command': self._on_torque,
+                'joint_commands': self._on_joint_commands,
+                'external_force': self._on_force,
+                'velocity_command': self._on_velocity,
+                'position_command': self._on_position}
+
     def _build_interfaces(self):
         """Create the publishers and subscriptions of the topic table, and the services."""
-        callbacks = {'torque_command': self._on_torque,
-                     'joint_commands': self._on_joint_commands,
-                     'external_force': self._on_force,
-                     'velocity_command': self._on_velocity,
-                     'position_command': self._on_position}
+        callbacks = self.command_callbacks()
         self._pubs, self._rec_topic = {}, {}
         for topic, (type_name, role, qos) in TOPIC_SPECS.items():
             if role in ('record', 'diagnostics'):   # recorded only; diagnostics: see below
@@ -233,6 +244,21 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         if self._desc is not None:
             self._rec_topic.update(self._desc.topics)
             self._desc.publish_static(self._sim_now(), None)
+
+    def _start_live_view(self, host, port):
+        """Serve Foxglove on host:port (StartupError if the port is taken)."""
+        from .foxglove_live import LiveView     # the SDK is imported only with a port
+        self._live = LiveView(self, host, port)
+        self.sink = self._live.sink(self.recorder)
+        if self.mode == 'lockstep':                 # its loop only waits for commands
+            self.create_timer(0.01, self._live.drain)
+        else:
+            self._spin = self._drain_and_spin
+
+    def _drain_and_spin(self):
+        """The live view's commands and parameter requests, then the ROS events of the tick."""
+        self._live.drain()
+        ClockLoops._spin(self)
 
     def _make_serializers(self):
         self._encoder = StateEncoder(self.settings.joint_prefix, self.params.anti_backlash)
@@ -275,8 +301,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
 
     def _record_cmd(self, topic, data):
         self._events += 1
-        if self.recorder.active:
-            self.recorder.write(self._rec_topic[topic], data, self._sim_now())
+        if self.sink.active:
+            self.sink.write(self._rec_topic[topic], data, self._sim_now())
 
     def _on_torque(self, data):
         self._record_cmd('torque_command', data)
@@ -350,11 +376,11 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
         if sampled:
             for topic, data in enc.truth(stamp, model.truth_values()):
                 self._emit(topic, data)
-            if self.recorder.active:
+            if self.sink.active:
                 for topic, data in enc.analysis(stamp, model.analysis_values()):
-                    self.recorder.write(self._rec_topic[topic], data, stamp)
+                    self.sink.write(self._rec_topic[topic], data, stamp)
         if values is not None and self._desc is not None:
-            self._desc.publish_tf(s_stamp, values[0], values[1], self.recorder)
+            self._desc.publish_tf(s_stamp, values[0], values[1], self.sink)
 
     def _publish_switches(self, switches):
         """Publish and record the switch states (on a change and at 10 Hz)."""
@@ -377,8 +403,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
     def _emit(self, topic, data):
         """Publish the serialized state ``data`` on ``topic`` and record it."""
         self._pubs[topic].publish(data)
-        if self.recorder.active:
-            self.recorder.write(self._rec_topic[topic], data, self._sim_now())
+        if self.sink.active:
+            self.sink.write(self._rec_topic[topic], data, self._sim_now())
 
     def _lockstep_tick(self):
         self.tick_time = self._sim_now()
@@ -406,11 +432,12 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             target_rate=self.settings.update_rate, command_age=age, stale=inp.hold.stale,
             loop=self.loop, lateness=lateness,
             counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder,
-            dropped=(inp.hold.dropped, self.delivery.dropped))
+            dropped=(inp.hold.dropped, self.delivery.dropped),
+            live=None if self._live is None else self._live.status())
         data = serialize_message(arr)
         self._pub_diag.publish(data)
-        if self.recorder.active:
-            self.recorder.write(self._rec_topic['diagnostics'], data, self._sim_now())
+        if self.sink.active:
+            self.sink.write(self._rec_topic['diagnostics'], data, self._sim_now())
 
     def close(self):
         """Write the stats file, close the recorder."""
@@ -422,6 +449,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             except OSError as exc:
                 self.get_logger().error(f'cannot write stats_file {path!r}: {exc}')
         self.recorder.stop()
+        if self._live is not None:
+            self._live.stop()
 
 
 def make_executor(context=None):

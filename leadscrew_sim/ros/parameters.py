@@ -19,13 +19,21 @@ from ..core.fields import field_name, public_name
 from ..core.presets import preset_label
 from ..core.settings import RunSettings
 
-__all__ = ['check_drive_interface', 'DEFAULT_PRESET', 'declare_parameters', 'descriptor',
+__all__ = ['check_drive_interface', 'declare_live_view', 'DEFAULT_PRESET', 'declare_parameters',
+           'descriptor',
            'integers_as_doubles', 'ParameterChange', 'StartupError', 'validate_changes']
 
 DEFAULT_PRESET = 'tr12x3'
 
+#: The live view's start-up parameters (read-only): name -> (default, description).
+LIVE_VIEW_PARAMETERS = {
+    'foxglove_port': (0, 'TCP port of the Foxglove WebSocket live view (0: off; 1-65535)'),
+    'foxglove_host': ('127.0.0.1', 'address the Foxglove live view binds (with foxglove_port)'),
+}
+
 #: Parameters the node knows besides the physics and the run settings.
-OTHER_PARAMETERS = frozenset(('preset', 'use_sim_time', 'start_type_description_service'))
+OTHER_PARAMETERS = frozenset(('preset', 'use_sim_time', 'start_type_description_service',
+                              *LIVE_VIEW_PARAMETERS))
 
 
 class StartupError(Exception):
@@ -106,6 +114,34 @@ def declare_parameters(node):
         if field_name(name) not in physics and name not in run and name not in OTHER_PARAMETERS:
             node.get_logger().warn(f"ignoring unknown parameter '{name}'")
     return preset, params, settings
+
+
+def declare_live_view(node):
+    """
+    Declare ``foxglove_port`` and ``foxglove_host`` (read-only); return (host, port).
+
+    Raises StartupError for a port outside 0-65535 or an empty host.
+    """
+    overrides = _overrides(node)
+    values = {}
+    for name, (default, text) in LIVE_VIEW_PARAMETERS.items():
+        value = overrides.get(name, default)
+        if type(value) is not type(default):
+            raise StartupError(f"parameter '{name}': {value!r} is not "
+                               f"{'an integer' if isinstance(default, int) else 'a string'}")
+        values[name] = value
+    port, host = values['foxglove_port'], values['foxglove_host']
+    if not 0 <= port <= 65535:
+        raise StartupError(f"parameter 'foxglove_port': {port} is outside 0-65535 (0: off)")
+    if not host:
+        raise StartupError("parameter 'foxglove_host': empty (an address, e.g. 127.0.0.1)")
+    node.declare_parameter('foxglove_port', port, ParameterDescriptor(
+        name='foxglove_port', read_only=True, description=LIVE_VIEW_PARAMETERS['foxglove_port'][1],
+        integer_range=[IntegerRange(from_value=0, to_value=65535, step=0)]), ignore_override=True)
+    node.declare_parameter('foxglove_host', host, ParameterDescriptor(
+        name='foxglove_host', read_only=True,
+        description=LIVE_VIEW_PARAMETERS['foxglove_host'][1]), ignore_override=True)
+    return host, port
 
 
 #: A validated batch of run-time changes: ``physics`` and ``run`` the values as set, by
