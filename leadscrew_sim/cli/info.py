@@ -9,13 +9,15 @@ from ..io import cdr as C, messages as M
 from ..io.run_file import PARAMS_RECORD, params_from_record
 from ..offline.run_events import EventLog, recorded_events
 from .event_lines import print_events
+from ..offline.foreign.survey import foreign_lines
 
 HELP = 'one screen about a recording'
 
 
 def add_arguments(p):
     """Add the options of ``info`` to parser ``p``."""
-    p.add_argument('file', help='the recording (any ros2-profile MCAP)')
+    p.add_argument('file', help='the recording (any ros2-profile MCAP, or a rosbag2 bag '
+                   'directory)')
     p.add_argument('--no-resim', action='store_true',
                    help='skip the re-simulation (stick fraction, energy)')
     p.add_argument('--figures', metavar='PROFILE', nargs='?', const='auto',
@@ -33,7 +35,9 @@ def run(args):
     figures = _figures_profile(args, rec) if meta is not None else None
     _print_channels(args, rec)
     if meta is None:
-        print('(not a leadscrew_sim recording: generic counts only)')
+        print('(not a leadscrew_sim recording)')
+        for line in foreign_lines(rec):
+            print(line)
         return 0
     print(f'leadscrew_sim run: preset {meta.get("preset", "?")}, '
           f'{meta.get("update_rate", "?")} Hz, clock_mode {meta.get("clock_mode", "?")}')
@@ -111,11 +115,13 @@ def _print_figures(args, rec, meta, name):
 def _print_channels(args, rec):
     """Print the file, its duration and the message count and rate [Hz] of each channel."""
     st = rec.statistics()
-    size = os.path.getsize(args.file)
+    size = rec.size() if hasattr(rec, 'size') else os.path.getsize(args.file)
     counts = dict(st.channel_message_counts) if st else {}
     t_first = st.message_start_time if st and st.message_count else 0
     t_last = st.message_end_time if st and st.message_count else 0
-    print(f'file:      {args.file} ({size} B), profile {rec.profile!r}, '
+    kind = (f'rosbag2 bag, {rec.storage} storage, {len(rec.files)} file(s)'
+            if hasattr(rec, 'files') else 'MCAP file')
+    print(f'file:      {args.file} ({kind}, {size} B), profile {rec.profile!r}, '
           f'library {rec.header.library!r}')
     print(f'duration:  {(t_last - t_first) / NS:.6f} s (log time {t_first / NS:.6f} .. '
           f'{t_last / NS:.6f} s), {st.message_count if st else 0} messages')

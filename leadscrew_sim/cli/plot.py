@@ -1,11 +1,20 @@
-"""``plot``: one PNG with four panels of a leadscrew_sim recording (forces from the file)."""
+"""
+``plot``: one PNG with four panels of a recording (forces from the file, or re-simulated).
+
+A foreign recording (a real axis's bag, mapped by the options) is
+re-simulated as its twin with ``--preset``/``--params``: the panels show the
+twin, the first one the measured nut position over it.
+"""
 from pathlib import Path
 
 import numpy as np
 
-from ..offline.options import NS, open_recording, Progress, RunError
+from .args import add_mapping_arguments
+from ..offline.foreign.mapping import Mapping
+from ..offline.options import load_params, NS, open_recording, parse_sets, Progress, RunError
 from ..offline.replay.resim import Resim
 from ..io import cdr as C, messages as M
+from ..io.run_file import PARAMS_RECORD
 
 HELP = 'four-panel PNG of a leadscrew_sim recording'
 
@@ -16,13 +25,18 @@ COLUMNS = ('nut_position', 'nut_velocity', 'screw_angle', 'motor_torque', 'norma
 
 def add_arguments(p):
     """Add the options of ``plot`` to parser ``p``."""
-    p.add_argument('file', help='the recording (MCAP)')
+    p.add_argument('file', help='the recording (MCAP file or rosbag2 bag directory)')
     p.add_argument('--output', '-o', metavar='FILE.png', help='PNG path (default <stem>.png)')
     p.add_argument('--width', type=int, default=1200, help='image width [px] (default 1200)')
     p.add_argument('--height', type=int, default=900, help='image height [px] (default 900)')
     p.add_argument('--dpi', type=int, default=100,
                    help='resolution [dots per inch] (default 100)')
     p.add_argument('--quiet', '-q', action='store_true', help='no progress bar')
+    g = add_mapping_arguments(p)
+    g.add_argument('--preset', help='the twin\'s parameters: a preset (a foreign recording)')
+    g.add_argument('--params', help='the twin\'s parameters: a ROS 2 parameter file')
+    g.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='a parameter of the twin (repeatable; YAML scalar in its unit)')
 
 
 def _recorded(rec):
@@ -53,6 +67,44 @@ def _recorded(rec):
 def run(args):
     """Write one PNG with four panels (from the file, or re-simulated for an older file)."""
     rec = open_recording(args.file)
+    mapping = Mapping.from_args(args)
+    measured = None
+    if mapping.given or args.preset or args.params or rec.record(PARAMS_RECORD) is None:
+        sim, t, col, measured = _twin(args, rec, mapping)
+        source = f'of the twin ({sim.meta["preset"]}) re-simulated from the mapped commands'
+    else:
+        sim, t, col, source = _own(args, rec)
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    w_in, h_in = args.width / args.dpi, args.height / args.dpi
+    fig, axs = plt.subplots(2, 2, figsize=(w_in, h_in), dpi=args.dpi)
+    fig.suptitle(f'{Path(args.file).name}: preset {sim.meta.get("preset", "?")}, '
+                 f'{NS / sim.dt_ns:g} Hz', fontsize=10)
+    _motion_panel(axs[0, 0], t, col, measured)
+    _force_panel(axs[0, 1], t, col)
+    _backlash_panel(axs[1, 0], col, sim.params)
+    ax = axs[1, 1]
+    ax.plot(col['nut_position'] * 1e3, col['nut_velocity'] * 1e3, 'C0', lw=0.6)
+    ax.set_xlabel('nut position [mm]')
+    ax.set_ylabel('nut velocity [mm/s]')
+    ax.set_title('phase portrait', fontsize=9)
+    for a in axs.flat:
+        a.grid(True, lw=0.3)
+    fig.tight_layout()
+    src = Path(args.file)
+    out = args.output or (str(src) + '.png' if src.is_dir() else str(src.with_suffix('.png')))
+    try:
+        fig.savefig(out, dpi=args.dpi)
+    except OSError as exc:
+        raise RunError(f'cannot write {out}: {exc.strerror or exc}') from None
+    plt.close(fig)
+    print(f'wrote {out} ({args.width}x{args.height} px; forces and contact {source})')
+    return 0
+
+
+def _own(args, rec):
+    """Return (Resim, time [s], the COLUMNS, source) of a leadscrew_sim recording."""
     sim = Resim(rec)
     recorded = _recorded(rec)
     if recorded is not None:
@@ -71,38 +123,38 @@ def run(args):
                for name in COLUMNS}
         t = sim.dt_ns * np.arange(1, len(col['nut_position']) + 1) / NS   # from the start
         source = 're-simulated from the recorded parameters and commands'
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    w_in, h_in = args.width / args.dpi, args.height / args.dpi
-    fig, axs = plt.subplots(2, 2, figsize=(w_in, h_in), dpi=args.dpi)
-    fig.suptitle(f'{Path(args.file).name}: preset {sim.meta.get("preset", "?")}, '
-                 f'{NS / sim.dt_ns:g} Hz', fontsize=10)
-    _motion_panel(axs[0, 0], t, col)
-    _force_panel(axs[0, 1], t, col)
-    _backlash_panel(axs[1, 0], col, sim.params)
-    ax = axs[1, 1]
-    ax.plot(col['nut_position'] * 1e3, col['nut_velocity'] * 1e3, 'C0', lw=0.6)
-    ax.set_xlabel('nut position [mm]')
-    ax.set_ylabel('nut velocity [mm/s]')
-    ax.set_title('phase portrait', fontsize=9)
-    for a in axs.flat:
-        a.grid(True, lw=0.3)
-    fig.tight_layout()
-    src = Path(args.file)
-    out = args.output or str(src.with_suffix('.png'))
-    try:
-        fig.savefig(out, dpi=args.dpi)
-    except OSError as exc:
-        raise RunError(f'cannot write {out}: {exc.strerror or exc}') from None
-    plt.close(fig)
-    print(f'wrote {out} ({args.width}x{args.height} px; forces and contact {source})')
-    return 0
+    return sim, t, col, source
 
 
-def _motion_panel(ax, t, col):
+def _twin(args, rec, mapping):
+    """Return (a stand-in for Resim, time [s], the COLUMNS, measured nut position) of a twin."""
+    import types
+    from ..offline.foreign.replay import ForeignReplay
+    rec.require_ros2()
+    if not (args.preset or args.params):
+        raise RunError(f'{args.file}: not a leadscrew_sim recording: give the twin\'s '
+                       'parameters (--preset NAME or --params FILE) and the mapping flags '
+                       f'(`leadscrew_sim info {args.file}` prints those that fit)')
+    phys, run_ov = parse_sets(args.set)
+    if run_ov:
+        raise RunError('plot --set accepts physics parameters only')
+    params, label, _extra = load_params(args, phys)
+    rep = ForeignReplay(mapping, rec, params, estimate_delay=True)
+    cols = rep.replay({}, interpolate=False)
+    col = {name: np.asarray(cols[name], dtype=float) for name in COLUMNS}
+    t = rep.dt_ns * np.arange(1, rep.n_steps + 1) / NS
+    x = rep.states.values.get('nut_position')
+    measured = None if x is None else ((rep.states.stamps - rep.t0) / NS, x)
+    sim = types.SimpleNamespace(params=rep.params, dt_ns=rep.dt_ns, meta={'preset': label})
+    return sim, t, col, measured
+
+
+def _motion_panel(ax, t, col, measured=None):
     """Nut position [mm], nut velocity [mm/s] and motor torque [mN m] over time [s]."""
     ax.plot(t, col['nut_position'] * 1e3, 'C0', lw=1, label='nut position [mm]')
+    if measured is not None:
+        ax.plot(measured[0], measured[1] * 1e3, '.', color='k', ms=1.5,
+                label='measured nut position [mm]')
     ax.set_xlabel('time [s]')
     ax.set_ylabel('nut position [mm]', color='C0')
     ax2 = ax.twinx()
