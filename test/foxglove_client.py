@@ -30,13 +30,20 @@ def free_port():
 class FoxgloveClient:
     """One connection: the server's info and channels, subscriptions, publishing, parameters."""
 
-    def __init__(self, port, timeout=60.0, proc=None):
-        """Connect (retrying until the server listens or ``timeout`` [s]); read serverInfo."""
+    def __init__(self, port, timeout=60.0, proc=None, rcvbuf=None):
+        """
+        Connect (retrying until the server listens or ``timeout`` [s]); read serverInfo.
+
+        ``rcvbuf``: the socket's receive buffer [bytes] (small: a client that
+        stops reading stalls the server's sends sooner).
+        """
         end = time.monotonic() + timeout
+        opts = () if rcvbuf is None else ((socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf),)
         while True:
             try:
                 self.ws = websocket.create_connection(
-                    f'ws://127.0.0.1:{port}', subprotocols=SUBPROTOCOLS, timeout=5.0)
+                    f'ws://127.0.0.1:{port}', subprotocols=SUBPROTOCOLS, timeout=5.0,
+                    sockopt=opts)
                 break
             except (OSError, websocket.WebSocketException):
                 if time.monotonic() > end or (proc is not None and proc.proc.poll() is not None):

@@ -256,7 +256,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             self._spin = self._drain_and_spin
 
     def _drain_and_spin(self):
-        """The live view's commands and parameter requests, then the ROS events of the tick."""
+        """Take the live view's commands and parameter requests, then the tick's ROS events."""
         self._live.drain()
         ClockLoops._spin(self)
 

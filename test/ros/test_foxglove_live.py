@@ -33,24 +33,24 @@ PUBLISHED = {
 
 
 def float64(value):
-    """CDR of a std_msgs/Float64 (rosbags' serializer)."""
+    """Return the CDR of a std_msgs/Float64 (rosbags' serializer)."""
     return bytes(TS.serialize_cdr(TS.types['std_msgs/msg/Float64'](data=value),
                                   'std_msgs/msg/Float64'))
 
 
 def decode(client, sub, type_name):
-    """Decode every message of a subscription with rosbags: [(timestamp, message)]."""
+    """Decode every message of a subscription with rosbags; return [(timestamp, message)]."""
     return [(t, TS.deserialize_cdr(p, type_name)) for t, p in client.data[sub]]
 
 
 def diag_value(msg, key):
-    """A key's value in a DiagnosticArray."""
+    """Return a key's value in a DiagnosticArray."""
     return next(kv.value for kv in msg.status[0].values if kv.key == key)
 
 
 @pytest.fixture
 def live_node(run_exe):
-    """A node at 1 kHz serving Foxglove; yield (process, client)."""
+    """Start a node at 1 kHz serving Foxglove; yield (process, client)."""
     port = free_port()
     proc = start_node(run_exe, f'foxglove_port:={port}')
     client = FoxgloveClient(port, timeout=60.0, proc=proc)
