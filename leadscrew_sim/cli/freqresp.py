@@ -62,6 +62,14 @@ def add_arguments(p):
                    'Float64 --command-topic carries')
     p.add_argument('--screw-joint', help='a recording: joint name of the screw (motor)')
     p.add_argument('--nut-joint', help='a recording: joint name of the nut')
+    p.add_argument('--command-index', type=int, metavar='N',
+                   help='a recording: entry of a Float64MultiArray command (default 0)')
+    p.add_argument('--command-joint', metavar='NAME',
+                   help='a recording: joint of JointState commands')
+    p.add_argument('--command-delay', type=float, metavar='S',
+                   help='a recording: command-to-state delay [s] (default 0)')
+    p.add_argument('--map', metavar='FILE.yaml', help='a recording: the mapping keys in a '
+                   'YAML file (doc/bags.md)')
     p.add_argument('--output-csv', '-o', dest='output_csv', metavar='FILE.csv',
                    help='write frequency [Hz], magnitude_db, phase_deg, coherence, amplitude')
     p.add_argument('--plot', metavar='FILE.png', help='write the Bode plot (coherence below)')

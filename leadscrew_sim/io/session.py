@@ -16,7 +16,7 @@ from pathlib import Path
 from ..core.settings import MIN_SPLIT_BYTES, PREFIX_RE
 from .mcap_scan import scan
 from .mcap_file import Guarded, McapRecorder, one_line_error, ROSBAG2_METADATA_NAME
-from .msgdefs import full_type_name, ros2msg_definition
+from .msgdefs import full_type_name, ros2msg_definition, type_hash
 from .qos import DEFAULT_QOS
 
 
@@ -338,3 +338,54 @@ def recover(src, dst):
         raise OSError(out.error)
     found.messages = [m for m in found.messages if m[1] in channels]
     return found
+
+
+def recover_bag(bag, dst):
+    """
+    Write a rosbag2 bag (a :class:`~.rosbag2.BagRecording`, messages loaded) as one MCAP file.
+
+    Every whole message of its files (a cut last file up to its last whole
+    chunk), in log-time order, with its schema, channel and the metadata
+    records, and a full summary. Returns the number of messages written.
+
+    Raises
+    ------
+    OSError
+        If ``dst`` cannot be written.
+
+    """
+    out = McapRecorder(dst, flush_interval=math.inf)
+    channels = {}
+    by_topic = {c.topic: cid for cid, c in bag.channels.items()}
+    for cid, record in bag.channels.items():
+        schema = bag.schemas.get(record.schema_id)
+        if schema is None:
+            continue
+        data = schema.data
+        if not data:            # a sqlite3 bag without its definitions: the installed ones
+            try:
+                data = ros2msg_definition(full_type_name(schema.name)).encode()
+            except LookupError:
+                continue
+        meta = dict(record.metadata)
+        if 'topic_type_hash' not in meta:
+            try:
+                meta['topic_type_hash'] = type_hash(schema.name)
+            except (LookupError, OSError, ValueError):
+                meta['topic_type_hash'] = ''
+        channels[cid] = out._register(
+            record.topic, schema.name, schema.encoding or 'ros2msg', data,
+            meta.get('offered_qos_profiles') or DEFAULT_QOS, meta)
+    for name, data in bag.metadata:
+        if name != ROSBAG2_METADATA_NAME:
+            out.add_metadata(name, data)
+    n = 0
+    for log_time, topic, data in bag.messages:
+        cid = by_topic.get(topic)
+        if cid in channels:
+            out.write(channels[cid], data, log_time, log_time)
+            n += 1
+    out.close()
+    if out.error:
+        raise OSError(out.error)
+    return n

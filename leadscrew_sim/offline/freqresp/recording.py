@@ -75,6 +75,16 @@ class RecordingOptions:
         recording's prefix + ``screw_joint`` / ``nut_joint``).
     step_rate : float or None
         Step rate [Hz] of a foreign recording (default: from its state stamps).
+    command_index : int or None
+        Entry of a std_msgs/Float64MultiArray command (default 0).
+    command_joint : str or None
+        Joint of JointState commands (default: the joint the kind names).
+    command_delay : float or None
+        Constant command-to-state delay [s]: the commands' times are shifted
+        by it (default 0).
+    map_file : str or None
+        A ``--map`` YAML file with these mapping keys
+        (:mod:`leadscrew_sim.offline.foreign.mapping`); a key set here wins.
     params : ScrewParams or None
         The axis (hand and lead) for ``following_error`` of a foreign
         recording; a leadscrew_sim recording has its own.
@@ -92,11 +102,21 @@ class RecordingOptions:
     screw_joint: str = None
     nut_joint: str = None
     step_rate: float = None
+    command_index: int = None
+    command_joint: str = None
+    command_delay: float = None
+    map_file: str = None
     params: object = None
 
 
 def _check_options(o):
-    """Raise RunError for an unknown name or a band or count out of range."""
+    """Raise RunError for an unknown name or a band or count out of range; read --map."""
+    from ..foreign.mapping import Mapping
+    keys = {k: getattr(o, k) for k in Mapping.keys()}
+    keys['map'] = o.map_file
+    mapping = Mapping.from_args(type('MapOptions', (), keys)())
+    for k in Mapping.keys():
+        setattr(o, k, getattr(mapping, k))
     if o.input is not None and o.input not in INPUTS:
         raise RunError(f"--input '{o.input}' is not an input ({', '.join(INPUTS)})")
     if o.output not in OUTPUTS:
@@ -225,11 +245,33 @@ def _joint_values(messages, joint, field, stamped):
 
 
 def _input_series(r, topic, kind):
+    """Return (log times [ns] + the command delay, values) of the commands of ``kind``."""
+    t, v = _commands(r, topic, kind)
+    return t + int(round((r.o.command_delay or 0.0) * NS)), v
+
+
+def _commands(r, topic, kind):
     """Return (log times [ns], values) of the commands of ``kind`` on ``topic``."""
     msgs = r.messages(topic)
-    if r.rec.topic_types.get(topic) == 'sensor_msgs/msg/JointState':
+    ctype = r.rec.topic_types.get(topic)
+    if ctype == 'sensor_msgs/msg/JointState':
         role, field = _COMMAND_FIELD[kind]
-        return _joint_values(msgs, r.joints[role], field, stamped=False)
+        return _joint_values(msgs, r.o.command_joint or r.joints[role], field, stamped=False)
+    if ctype == 'std_msgs/msg/Float64MultiArray':
+        index = r.o.command_index or 0
+        times, values = [], []
+        for i, (t, d) in enumerate(msgs):
+            a = C.decode_float64_multi_array(d)
+            if index >= len(a):
+                raise RunError(f'--command-index {index}: past the array of message {i} on '
+                               f'{topic} ({len(a)} entries)')
+            if math.isfinite(a[index]):         # a NaN command is skipped, as the node does
+                times.append(t)
+                values.append(a[index])
+        return np.array(times, dtype=np.int64), np.array(values, dtype=float)
+    if ctype not in (None, 'std_msgs/msg/Float64'):
+        raise RunError(f'--command-topic {topic}: type {ctype!r} is not read by freqresp '
+                       '(std_msgs/Float64, std_msgs/Float64MultiArray, sensor_msgs/JointState)')
     return (np.array([t for t, _d in msgs], dtype=np.int64),
             np.array([C.decode_float64(d) for _t, d in msgs], dtype=float))
 

@@ -80,7 +80,9 @@ def _recording(args):
         fmin=_get(args, 'fmin'), fmax=_get(args, 'fmax'), segments=_get(args, 'segments', 8),
         state_topic=_get(args, 'state_topic'), command_topic=_get(args, 'command_topic'),
         command_kind=_get(args, 'command_kind'), screw_joint=_get(args, 'screw_joint'),
-        nut_joint=_get(args, 'nut_joint'), step_rate=_get(args, 'step_rate'))
+        nut_joint=_get(args, 'nut_joint'), step_rate=_get(args, 'step_rate'),
+        command_index=_get(args, 'command_index'), command_joint=_get(args, 'command_joint'),
+        command_delay=_get(args, 'command_delay'), map_file=_get(args, 'map'))
     resp = recording_response(args.file, opts)
     linear = None
     params = _params(args) if _get(args, 'preset') or _get(args, 'params') else None
