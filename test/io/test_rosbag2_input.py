@@ -33,7 +33,7 @@ T = B.TYPESTORE.types
 
 
 def _messages(n=3000, seed=3):
-    """Return [(log time, topic, type, message)]: states at irregular 2-10 ms, commands at 100 Hz."""
+    """Return [(log time, topic, type, message)]: states every 2-10 ms, commands at 100 Hz."""
     rng = np.random.default_rng(seed)
     out, t = [], B.EPOCH
     for i in range(n):
@@ -105,7 +105,7 @@ def test_a_bag_split_in_two_files_is_merged_in_log_time_order(tmp_path):
 
 
 def _rewrite_lz4(src, dst):
-    """Rewrite an MCAP file with the mcap library's writer, lz4 chunks (schemas and channels kept)."""
+    """Rewrite an MCAP file by the mcap library's writer in lz4 chunks (schemas, channels kept)."""
     from mcap.reader import make_reader
     from mcap.writer import CompressionType, Writer as McapWriter
     with open(src, 'rb') as fi, open(dst, 'wb') as fo:
@@ -127,7 +127,7 @@ def _rewrite_lz4(src, dst):
 
 @pytest.mark.parametrize('compression', ['zstd', 'lz4'])
 def test_zstd_and_lz4_chunks(tmp_path, compression):
-    """rosbags' zstd storage compression, and the mcap library's lz4 chunks, read alike."""
+    """The zstd chunks of rosbags' storage compression and lz4 chunks of the mcap library."""
     msgs = _messages(1500)
     bag = B.write_bag(tmp_path / 'bag', msgs, compress=compression == 'zstd')
     if compression == 'lz4':
@@ -143,7 +143,7 @@ def test_zstd_and_lz4_chunks(tmp_path, compression):
 
 
 def test_a_cut_last_file_is_read_up_to_its_last_whole_chunk(tmp_path):
-    """A crash cut the second file in its third chunk: what the whole chunks hold, and a warning."""
+    """A crash cut the second file in its third chunk: what the whole chunks hold; a warning."""
     msgs = _messages(20000)
     mid = sorted(m[0] for m in msgs)[len(msgs) // 3]
     whole = B.split_bag(tmp_path / 'whole', msgs, mid)
@@ -265,7 +265,7 @@ def test_cdr_decoders_against_rosbags():
 
 
 def test_trajectory_sampling_against_scipy():
-    """Linear between positions, cubic Hermite with velocities: as numpy's and scipy's interpolants."""
+    """Linear between positions, cubic Hermite with velocities: as numpy and scipy interpolate."""
     from scipy.interpolate import CubicHermiteSpline
     from leadscrew_sim.offline.foreign.commands import _piecewise
     at = np.array([0, 300, 1000, 1600], dtype=np.int64) * 1_000_000
