@@ -1,16 +1,19 @@
 """
-``play``: republish the messages of any ros2-profile MCAP with their timing.
+``play``: republish the messages of any ros2-profile recording with their timing.
 
-The only verb that needs ROS: rclpy is imported when it runs.
+On the ROS graph (rclpy is imported when it runs), or with ``--foxglove PORT``
+to Foxglove over its WebSocket protocol, without ROS
+(:mod:`leadscrew_sim.offline.play.foxglove`).
 """
 import math
 import sys
 import time
 
-from .args import add_deprecated_alias, PROG
+from .args import add_deprecated_alias, PROG, UsageError
 from ..offline.options import NS, open_recording, RunError
 from ..core import yamlio
 from ..io import messages as M
+from ..offline.play.schedule import Sleeper
 
 HELP = 'republish a recording with its timing'
 
@@ -22,7 +25,7 @@ PLAY_ACK_TIMEOUT_S = 5.0
 
 def add_arguments(p):
     """Add the options of ``play`` to parser ``p``."""
-    p.add_argument('file', help='the recording (any ros2-profile MCAP)')
+    p.add_argument('file', help='the recording (any ros2-profile MCAP file or rosbag2 bag)')
     p.add_argument('--speed-factor', dest='rate', type=float, default=1.0, metavar='F',
                    help='playback speed relative to the recorded log times [-] (default 1; '
                    '0.5: half speed)')
@@ -36,6 +39,12 @@ def add_arguments(p):
                    help='wait until N subscriptions matched in total (default 1)')
     p.add_argument('--wait-timeout', type=float, default=2.0, metavar='S',
                    help='longest wait for subscribers [s] (default 2)')
+    p.add_argument('--foxglove', type=int, metavar='PORT',
+                   help='serve the recording to Foxglove on this TCP port (1-65535) instead of '
+                   'the ROS graph (no ROS needed); --wait-subscribers then counts Foxglove '
+                   'subscriptions')
+    p.add_argument('--foxglove-host', default='127.0.0.1', metavar='ADDR',
+                   help='address to serve Foxglove on (default 127.0.0.1)')
     p.add_argument('--quiet', '-q', action='store_true',
                    help='no summary line (warnings and errors only)')
 
@@ -78,37 +87,6 @@ def _qos_from_metadata(metadata):
                       durability=dur)
 
 
-class _Sleeper:
-    """Absolute CLOCK_MONOTONIC deadlines (clock_nanosleep TIMER_ABSTIME; time.sleep fallback)."""
-
-    def __init__(self):
-        """Load libc."""
-        import ctypes
-        import ctypes.util
-
-        class Timespec(ctypes.Structure):
-            _fields_ = [('tv_sec', ctypes.c_long), ('tv_nsec', ctypes.c_long)]
-        self._ts = Timespec()
-        try:
-            libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6')
-            self._fn = libc.clock_nanosleep
-            self._ref = ctypes.byref(self._ts)
-        except (OSError, AttributeError):
-            self._fn = None
-
-    def until(self, deadline_ns):
-        """Sleep until time.monotonic_ns() >= deadline_ns."""
-        while True:
-            now = time.monotonic_ns()
-            if now >= deadline_ns:
-                return
-            if self._fn is None:
-                time.sleep((deadline_ns - now) / NS)
-            else:
-                self._ts.tv_sec, self._ts.tv_nsec = divmod(deadline_ns, NS)
-                self._fn(1, 1, self._ref, None)        # CLOCK_MONOTONIC, TIMER_ABSTIME
-
-
 def _parse_remaps(items):
     """Return {from: to} of the ``--remap from:=to`` options."""
     remap = {}
@@ -124,6 +102,8 @@ def run(args):
     """Republish a recording with its original timing; return the exit status."""
     if not (math.isfinite(args.rate) and args.rate > 0):
         raise RunError(f'--speed-factor {args.rate} must be > 0')
+    if args.foxglove is not None and not 1 <= args.foxglove <= 65535:
+        raise UsageError(f'--foxglove {args.foxglove}: a TCP port, 1-65535')
     rec = open_recording(args.file, topics=args.topics)
     rec.require_ros2()
     remap = _parse_remaps(args.remap)
@@ -134,6 +114,8 @@ def run(args):
                            f'{", ".join(sorted(rec.topic_types))})')
     if not rec.messages:
         raise RunError(f'{args.file}: no messages to play')
+    if args.foxglove is not None:
+        return _serve_foxglove(args, rec, remap)
     used = sorted({m[1] for m in rec.messages})
     chan_meta = {c.topic: dict(c.metadata) for c in rec.channels.values()}
     classes = {}
@@ -176,6 +158,23 @@ def run(args):
     return 0
 
 
+def _serve_foxglove(args, rec, remap):
+    """Serve the recording to Foxglove (the SDK is imported only here); return 0."""
+    from ..io.foxglove_server import ServeError
+    from ..offline.play.foxglove import serve_recording
+    try:
+        sent, wall = serve_recording(rec, args, remap, M.StateEncoder().clock)
+    except ServeError as exc:
+        raise UsageError(f'--foxglove {args.foxglove}: {exc}') from None
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
+    if not args.quiet:
+        print(f'served {sent} messages on {len({m[1] for m in rec.messages})} topics in '
+              f'{wall:.3f} s (speed factor {args.rate:g})')
+    return 0
+
+
 def _wait_for_subscribers(args, pubs):
     """Wait up to ``--wait-timeout`` s until ``--wait-subscribers`` subscriptions matched."""
     end = time.monotonic() + args.wait_timeout
@@ -196,7 +195,7 @@ def _wait_for_subscribers(args, pubs):
 def _publish(args, rec, pubs, clock_pub):
     """Publish the messages on their schedule; return (messages sent, wall time [s])."""
     clock_enc = M.StateEncoder().clock
-    sleeper = _Sleeper()
+    sleeper = Sleeper()
     t_first = rec.messages[0][0]
     scale = 1.0 / args.rate
     sent = 0

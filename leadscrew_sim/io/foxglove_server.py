@@ -94,7 +94,9 @@ class LiveServer(ServerListener):
     Parameters
     ----------
     channels : dict
-        Topic (as advertised) -> ROS type name (``'sensor_msgs/msg/JointState'``).
+        Topic (as advertised) -> ROS type name (``'sensor_msgs/msg/JointState'``:
+        its installed ros2msg definition) or (type name, schema encoding, schema
+        bytes) as a recording carries them.
     host, port : str, int
         Address to bind (port 0: any free port, see :attr:`port`).
     name : str
@@ -121,9 +123,10 @@ class LiveServer(ServerListener):
         _listen_to_sdk_log(self.counts)
         self._context = Context()
         self._channels, self._topic_of = {}, {}
-        for topic, type_name in channels.items():
-            schema = Schema(name=type_name, encoding='ros2msg',
-                            data=ros2msg_definition(type_name).encode())
+        for topic, spec in channels.items():
+            if isinstance(spec, str):
+                spec = (spec, 'ros2msg', ros2msg_definition(spec).encode())
+            schema = Schema(name=spec[0], encoding=spec[1], data=bytes(spec[2]))
             ch = Channel(topic, schema=schema, message_encoding='cdr', context=self._context)
             self._channels[topic] = ch
             self._topic_of[ch.id()] = topic
@@ -187,6 +190,14 @@ class LiveServer(ServerListener):
     def publish_parameter_values(self, parameters):
         """Send changed parameters ([foxglove.Parameter]) to the clients that follow them."""
         self._server.publish_parameter_values(parameters)
+
+    def wait_sent(self, timeout):
+        """Wait up to ``timeout`` [s] until the queue is handed to the SDK; return True if so."""
+        end = time.monotonic() + timeout
+        while self._queue and time.monotonic() < end:
+            time.sleep(PERIOD)
+        time.sleep(2 * PERIOD)            # the last batch
+        return not self._queue
 
     def stop(self):
         """Stop the serving thread and the server."""

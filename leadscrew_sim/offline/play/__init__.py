@@ -1,0 +1,1 @@
+"""``play``'s library: the playback schedule and serving a recording to Foxglove."""
