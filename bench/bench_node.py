@@ -1,8 +1,13 @@
 """
 Benchmark the node's real-time loop against the machine's noise floor.
 
-Run: .venv/bin/python bench/bench_node.py [--duration 60] [--rate 1000] [--sensors]
+Run: .venv/bin/python bench/bench_node.py [--duration 60] [--rate 1000] [--sensors | --foxglove]
 (with AMENT_PREFIX_PATH and NUMBA_CACHE_DIR set as in the Makefile).
+
+With ``--foxglove`` the runs are the node with ``foxglove_port`` 0 (is the
+SDK loaded at all: /proc/<pid>/maps), the node serving Foxglove with no
+client, and the node serving one client subscribed to every channel (a
+separate process, ``--client``, reading every frame with websocket-client).
 
 With ``--sensors`` the two runs are the node with every sensor model on
 (:data:`SENSOR_MODELS`: encoder counts, noise and bias, a linear scale with its
@@ -148,8 +153,67 @@ def bare_loop(rate, stats_path):
 # Measurement (this process)
 # ---------------------------------------------------------------------------
 
-def measure(argv, stats_path, duration, label):
-    """Start argv, probe it for duration s, stop it with SIGINT; return the results."""
+def foxglove_client(port, duration, stats_path):
+    """Subscribe to every channel of a Foxglove server, read every frame for duration s."""
+    import websocket
+    end = time.monotonic() + 60
+    while True:
+        try:
+            ws = websocket.create_connection(f'ws://127.0.0.1:{port}', timeout=5.0,
+                                             subprotocols=['foxglove.sdk.v1'])
+            break
+        except (OSError, websocket.WebSocketException):
+            if time.monotonic() > end:
+                raise
+            time.sleep(0.2)
+    channels = {}
+    t_adv = time.monotonic() + 2.0
+    while time.monotonic() < t_adv:               # serverInfo, advertise
+        ws.settimeout(0.5)
+        try:
+            opcode, frame = ws.recv_data()
+        except websocket.WebSocketTimeoutException:
+            continue
+        if opcode == websocket.ABNF.OPCODE_TEXT:
+            msg = json.loads(frame)
+            if msg['op'] == 'advertise':
+                channels.update({c['id']: c['topic'] for c in msg['channels']})
+    subs = {i + 1: topic for i, topic in enumerate(channels.values())}
+    ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+        {'id': sub, 'channelId': cid} for sub, cid in zip(subs, channels)]}))
+    counts = dict.fromkeys(subs.values(), 0)
+    nbytes = 0
+    ws.settimeout(1.0)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < duration:
+        try:
+            opcode, frame = ws.recv_data()
+        except websocket.WebSocketTimeoutException:
+            continue
+        if opcode == websocket.ABNF.OPCODE_BINARY and frame[:1] == b'\x01':
+            counts[subs[struct.unpack_from('<I', frame, 1)[0]]] += 1
+            nbytes += len(frame)
+    wall = time.monotonic() - t0
+    Path(stats_path).write_text(json.dumps(dict(
+        topics=len(subs), messages_per_s=sum(counts.values()) / wall,
+        bytes_per_s=nbytes / wall, per_topic={t: n / wall for t, n in counts.items()})))
+    ws.close()
+
+
+def maps_foxglove(pid):
+    """Return True if the process has the Foxglove SDK's library mapped."""
+    try:
+        return '_foxglove_py' in Path(f'/proc/{pid}/maps').read_text()
+    except OSError:
+        return None
+
+
+def measure(argv, stats_path, duration, label, client=None):
+    """
+    Start argv, probe it for duration s, stop it with SIGINT; return the results.
+
+    ``client``: (port, stats path) of a Foxglove client process to run meanwhile.
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -198,9 +262,15 @@ def measure(argv, stats_path, duration, label):
             ex.spin_once(timeout_sec=0.01)
             if proc.poll() is not None:
                 raise RuntimeError(f'{label} exited with code {proc.returncode}')
-        settle = time.monotonic() + 2.0
+        client_proc = None
+        if client is not None:
+            client_proc = subprocess.Popen(
+                [sys.executable, str(Path(__file__).resolve()), '--client', str(client[0]),
+                 '--stats', str(client[1]), '--duration', str(duration + 4.0)])
+        settle = time.monotonic() + (6.0 if client is not None else 2.0)
         while time.monotonic() < settle:
             ex.spin_once(timeout_sec=0.01)
+        foxglove_loaded = maps_foxglove(proc.pid)
         kids = children(proc.pid)
         cpu0 = cpu_seconds(proc.pid)
         kcpu0 = {k: cpu_seconds(k) for k in kids}
@@ -222,6 +292,8 @@ def measure(argv, stats_path, duration, label):
         cpu = (cpu_seconds(proc.pid) - cpu0) / wall
         kcpu = sum((cpu_seconds(c) or 0.0) - (v or 0.0) for c, v in kcpu0.items()) / wall
         sub_rate = (len(received) - 1) / ((received[-1] - received[0]) / NS)
+        if client_proc is not None:
+            client_proc.wait(timeout=30)
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -232,9 +304,12 @@ def measure(argv, stats_path, duration, label):
         node.destroy_node()
         rclpy.shutdown(context=ctx)
     stats = json.loads(Path(stats_path).read_text())
-    return dict(label=label, stats=stats, cpu=cpu, child_cpu=kcpu, sub_rate=sub_rate,
-                lat_p50=pct(latencies, 50), lat_p99=pct(latencies, 99),
-                lat_n=len(latencies), commands=k)
+    out = dict(label=label, stats=stats, cpu=cpu, child_cpu=kcpu, sub_rate=sub_rate,
+               lat_p50=pct(latencies, 50), lat_p99=pct(latencies, 99),
+               lat_n=len(latencies), commands=k, foxglove_loaded=foxglove_loaded)
+    if client is not None:
+        out['client'] = json.loads(Path(client[1]).read_text())
+    return out
 
 
 def report(node, bare, names=('node', 'bare loop')):
@@ -263,6 +338,32 @@ def report(node, bare, names=('node', 'bare loop')):
         print(f'{name:32s}{fmt.format(a):>14s}{fmt.format(b):>14s}{ratio:>10s}')
 
 
+def foxglove_runs(node_argv, node_stats, tmp, duration):
+    """Run the node without Foxglove, serving it idle, serving one client; print the three."""
+    import socket
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        port = s.getsockname()[1]
+    served_argv = node_argv + ['-p', f'foxglove_port:={port}']
+    off = measure(node_argv, node_stats, duration, 'foxglove_port 0')
+    idle = measure(served_argv, node_stats, duration, 'served, no client')
+    one = measure(served_argv, node_stats, duration, 'served, 1 client',
+                  client=(port, tmp / 'client.json'))
+    print('\nfoxglove_port 0 vs served with no client:')
+    report(off, idle, ('port 0', 'no client'))
+    print('\nserved with one client subscribed to every channel vs foxglove_port 0:')
+    report(one, off, ('1 client', 'port 0'))
+    c = one['client']
+    print(f'\nSDK library mapped: port 0 {off["foxglove_loaded"]}, no client '
+          f'{idle["foxglove_loaded"]}, 1 client {one["foxglove_loaded"]}')
+    print(f'client: {c["topics"]} topics, {c["messages_per_s"]:.0f} messages/s, '
+          f'{c["bytes_per_s"] / 1e6:.2f} MB/s; /joint_states '
+          f'{c["per_topic"].get("/joint_states", 0.0):.1f} /s')
+    print(f'CPU rise with the client: {100 * (one["cpu"] - off["cpu"]):+.1f} % of a core '
+          f'(served idle: {100 * (idle["cpu"] - off["cpu"]):+.1f} %)')
+    return 0
+
+
 def main():
     """Run both measurements and print the comparison."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -271,11 +372,18 @@ def main():
     ap.add_argument('--preset', default='tr12x3')
     ap.add_argument('--sensors', action='store_true', help='compare the node with every '
                     'sensor model on against the node with ideal sensors')
+    ap.add_argument('--foxglove', action='store_true', help='compare the node with '
+                    'foxglove_port 0, serving Foxglove without a client, and serving one '
+                    'client subscribed to every channel')
     ap.add_argument('--bare', action='store_true', help=argparse.SUPPRESS)
+    ap.add_argument('--client', type=int, help=argparse.SUPPRESS)
     ap.add_argument('--stats', help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.bare:
         bare_loop(args.rate, args.stats)
+        return 0
+    if args.client:
+        foxglove_client(args.client, args.duration, args.stats)
         return 0
     isolate_ros_env()
     tmp = Path(tempfile.mkdtemp(prefix='bench_node_'))
@@ -297,6 +405,8 @@ def main():
         ideal = measure(node_argv, node_stats, args.duration, 'ideal')
         report(real, ideal, ('sensors on', 'ideal'))
         return 0
+    if args.foxglove:
+        return foxglove_runs(node_argv, node_stats, tmp, args.duration)
     node = measure(node_argv, node_stats, args.duration, 'node')
     bare = measure(bare_argv, bare_stats, args.duration, 'bare loop')
     report(node, bare)
