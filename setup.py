@@ -9,6 +9,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'bench']),
+    # the commissioning report's page template, read beside its module
+    package_data={'leadscrew_sim.offline.commission': ['report_template.html']},
     data_files=[
         ('share/ament_index/resource_index/packages',
             ['resource/' + package_name]),

@@ -8,8 +8,8 @@ for tracebacks.
 import os
 import sys
 
-from . import (excite, freqresp, identify, info, play, plot, pullout, recover, resim, simulate,
-               stability)
+from . import (commission, excite, freqresp, identify, info, play, plot, pullout, recover,
+               resim, simulate, stability)
 from .args import Parser, PROG, UsageError
 from ..offline.options import RunError
 from ..core.params import ParameterError
@@ -18,21 +18,22 @@ from ..io.mcap_reader import RecordingError
 from ..io.run_file import RunFileError
 
 #: The verbs that run the compiled kernel: a first run says that it compiles it.
-KERNEL_VERBS = ('simulate', 'resim', 'identify', 'stability', 'freqresp', 'pullout')
+KERNEL_VERBS = ('simulate', 'resim', 'identify', 'stability', 'freqresp', 'pullout',
+                'commission')
 
 #: (verb, module with add_arguments, run and HELP), in the order of ``--help``.
 #: ``summary`` is an alias of ``info``.
 VERBS = (('simulate', simulate), ('info', info), ('summary', info), ('resim', resim),
          ('play', play), ('plot', plot), ('excite', excite), ('identify', identify),
          ('stability', stability), ('freqresp', freqresp), ('pullout', pullout),
-         ('recover', recover))
+         ('commission', commission), ('recover', recover))
 
 
 def build_parser():
     """Return the argument parser of all verbs."""
     parser = Parser(prog=PROG, description='Offline tools for the leadscrew_sim lead screw '
                     'axis: simulate, info, resim, play, plot, excite, identify, stability, '
-                    'freqresp, pullout, recover.')
+                    'freqresp, pullout, commission, recover.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     for name, verb in VERBS:

@@ -93,3 +93,9 @@ def test_every_module_is_installed(install_prefix):
                     if '__pycache__' not in p.parts)
     missing = [rel for rel in source if not (site / rel).is_file()]
     assert source and not missing, f'not installed: {missing}'
+
+
+def test_commission_template_installed(install_prefix):
+    """The commissioning report's page template (package data) lands beside its module."""
+    site = next(install_prefix.glob('lib/python3*/site-packages'))
+    assert (site / 'leadscrew_sim/offline/commission/report_template.html').is_file()

@@ -476,6 +476,8 @@ PROFILES = {cls.name: cls for cls in (BreakawayRamp, SpeedSweep, Reversals, Iso2
 
 from .broadband import BROADBAND  # noqa: E402 (it imports static_breakaway from here)
 PROFILES.update(BROADBAND)
+from .commission import COMMISSION  # noqa: E402 (it builds the profiles above)
+PROFILES.update(COMMISSION)
 
 
 def make_profile(name, params, **options):
@@ -498,6 +500,3 @@ def make_profile(name, params, **options):
         raise ProfileError(name, 'name', '', f'unknown excitation profile {name!r} (profiles: '
                            f'{", ".join(PROFILES)})') from None
     return cls(params, **options)
-
-from .commission import COMMISSION  # noqa: E402 (it builds the profiles above)
-PROFILES.update(COMMISSION)

@@ -1,0 +1,53 @@
+"""
+``commission``: one recording of ``excite commission``, the axis's report.
+
+``leadscrew_sim commission RUN -o DIR`` writes DIR/fit.yaml (the identified
+values as a parameter file), DIR/report.json (every figure) and
+DIR/report.html (one self-contained page). The run library is
+:mod:`leadscrew_sim.offline.commission.run`; the fit takes the options of
+``identify`` (starting values) that this verb passes on.
+"""
+import importlib
+
+from ..offline.commission.run import commission
+from ..offline.options import keep_freed_memory
+
+HELP = 'commission an axis from one recording: fit.yaml, report.json and report.html'
+
+
+def add_arguments(p):
+    """Add the options of ``commission`` to parser ``p``."""
+    p.add_argument('run', metavar='RUN', help='the recording (MCAP) of `excite commission`')
+    p.add_argument('-o', '--output', required=True, metavar='DIR',
+                   help='directory of fit.yaml, report.json and report.html (created)')
+    p.add_argument('--segments', metavar='FILE.json',
+                   help='segments sidecar of a recording without the segments record '
+                   '(default RUN.segments.json when it exists)')
+    p.add_argument('--preset', help='starting and fixed values: a preset (default: the one '
+                   'the recording names, else tr12x3)')
+    p.add_argument('--params', help='starting and fixed values: a ROS 2 parameter file')
+    p.add_argument('--set', action='append', metavar='NAME=VALUE',
+                   help='a starting or fixed value (repeatable; YAML scalar in the '
+                   'parameter\'s unit)')
+    p.add_argument('-q', '--quiet', action='store_true', help='no progress lines on stderr')
+
+
+def run(args):
+    """Commission the recording and write the three files; return 0."""
+    main = importlib.import_module('leadscrew_sim.cli.main')
+    keep_freed_memory()
+    argv = ['identify', args.run, '--quiet']
+    for flag, value in (('--preset', args.preset), ('--params', args.params)):
+        if value:
+            argv += [flag, value]
+    for item in args.set or []:
+        argv += ['--set', item]
+    identify_args = main.build_parser().parse_args(argv)
+    commission(args.run, args.output, identify_args, args.segments,
+               progress=(lambda line: None) if args.quiet else _say)
+    return 0
+
+
+def _say(line):
+    import sys
+    print(line, file=sys.stderr, flush=True)

@@ -1,0 +1,1 @@
+"""The run library of ``leadscrew_sim commission``: one recording, the axis's report."""

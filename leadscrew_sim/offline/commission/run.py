@@ -1,0 +1,167 @@
+"""
+The ``commission`` run: one recording through every stage, then fit.yaml, report.json, report.html.
+
+The stages run in order, each timed and announced on stderr: identify (the
+friction on the sweep), the twin (the calibrated re-simulation judged on
+the parts after the sweep), friction, backlash, frequency response,
+stability, ISO 230-2 and the stepper's pull-out. A part the recording lacks
+leaves its figures out and says what it would add.
+"""
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+
+from .context import Context, Measured
+from .segments import check_span, command_series, find_segments, missing
+from .stages import backlash, fit, friction, iso230, response, stability, stepper, twin
+from . import html, views
+from ..identify.inputs import start_params
+from ..identify.output import params_document, write_text
+from ..options import NS, open_recording, RunError
+from ...io.run_file import PARAMS_RECORD, run_setting
+
+#: (name, function) of the stages in their order.
+STAGES = (('identify', fit.run), ('twin', twin.run), ('friction', friction.run),
+          ('backlash', backlash.run), ('frequency response', response.run),
+          ('stability', stability.run), ('iso230', iso230.run), ('stepper', stepper.run))
+
+
+def _say(line):
+    print(line, file=sys.stderr, flush=True)
+
+
+def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
+    """
+    Commission the axis of recording ``path``; write DIR's three files; return the report dict.
+
+    Parameters
+    ----------
+    path : str
+        The recording (a leadscrew_sim MCAP file).
+    out_dir : str
+        Where fit.yaml, report.json and report.html go (created).
+    identify_args : argparse.Namespace
+        The options of ``identify`` (starting values, mapping flags); ``file``
+        and ``fit`` are set here.
+    sidecar : str, optional
+        A segments sidecar JSON file.
+    progress : callable
+        Gets one line per stage (stderr).
+
+    """
+    t_all = time.perf_counter()
+    rec = open_recording(path)
+    rec.require_ros2()
+    if rec.record(PARAMS_RECORD) is None:
+        raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record (a '
+                       'leadscrew_sim node or simulate recording is needed)')
+    commands = command_series(rec)
+    st = rec.statistics()
+    duration = (st.message_end_time - st.message_start_time) / NS if st and st.message_count \
+        else 0.0
+    windows, source = find_segments(rec, commands, sidecar)
+    if not windows:
+        raise RunError(f'{path}: no commission part found in its commands ({duration:.3g} s); '
+                       'record `leadscrew_sim excite commission`')
+    check_span(windows, duration)
+    start, label = start_params(identify_args, rec)
+    meta = rec.record(PARAMS_RECORD)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise RunError(f'-o {out_dir}: {exc.strerror or exc}') from None
+    timings = {}
+    with tempfile.TemporaryDirectory(prefix='commission_') as work:
+        ctx = Context(path=str(path), rec=rec, windows=windows, commands=commands,
+                      measured=Measured.of(rec), start=start, label=label, work=work,
+                      identify_args=identify_args, calibrated=start)
+        ctx.rate = float(run_setting(meta, 'update_rate', 1000.0))
+        sections = {'axis': _axis(ctx, duration, source)}
+        for i, (name, fn) in enumerate(STAGES):
+            t0 = time.perf_counter()
+            progress(f'commission: [{i + 1}/{len(STAGES)}] {name} ...')
+            sections[name] = fn(ctx, progress) if fn is fit.run else fn(ctx)
+            timings[name] = time.perf_counter() - t0
+            progress(f'commission: [{i + 1}/{len(STAGES)}] {name} done in '
+                     f'{timings[name]:.2f} s')
+    sections['undetermined'] = _undetermined(sections)
+    report = {'format': 'leadscrew_sim.commission/1', 'recording': str(path),
+              'sections': _clean(sections), 'timings_s': timings,
+              'wall_s': time.perf_counter() - t_all, 'fitted_on': ctx.fitted_on}
+    _write_fit(os.path.join(out_dir, 'fit.yaml'), ctx)
+    write_text(os.path.join(out_dir, 'report.json'), json.dumps(report, indent=1) + '\n', '-o')
+    page = html.render(f'Commissioning report: {os.path.basename(str(path))}',
+                       f'preset {label}; {duration:.1f} s recorded; segments from {source}',
+                       views.sections(ctx, report['sections']))
+    write_text(os.path.join(out_dir, 'report.html'), page, '-o')
+    report['wall_s'] = time.perf_counter() - t_all
+    progress(f'commission: wrote {out_dir}/fit.yaml, report.json, report.html in '
+             f'{report["wall_s"]:.1f} s')
+    return report
+
+
+def _axis(ctx, duration, source):
+    p = ctx.rec.record(PARAMS_RECORD) or {}
+    s = ctx.start
+    sensors = {'encoder_counts': _recorded(p, 'encoder_counts', s.encoder_counts),
+               'encoder_noise_rad': _recorded(p, 'encoder_noise', s.encoder_noise),
+               'linear_scale': _recorded(p, 'linear_scale', s.linear_scale),
+               'scale_resolution_m': _recorded(p, 'scale_resolution', s.scale_resolution),
+               'scale_noise_m': _recorded(p, 'scale_noise', s.scale_noise)}
+    return {'title': 'The axis and the recording', 'preset': ctx.label,
+            'drive_type': s.drive_type, 'sensors': sensors, 'duration_s': duration,
+            'segments': {n: list(w) for n, w in ctx.windows.items()},
+            'segments_source': source,
+            'missing': [{'part': n, 'would_add': w} for n, w in missing(ctx.windows)
+                        if not (n == 'breakaway' and s.drive_type == 'stepper')],
+            'cannot': []}
+
+
+def _recorded(meta, name, default):
+    """Return the recorded sensor setting (the user knows their sensors), else ``default``."""
+    v = meta.get(name)
+    if v is None:
+        return default
+    try:
+        return json.loads(v) if v in ('true', 'false') else float(v)
+    except ValueError:
+        return v
+
+
+def _undetermined(sections):
+    lines = []
+    for key, sec in sections.items():
+        if sec is None:
+            continue
+        for c in sec.get('cannot', []):
+            lines.append(f'{sec.get("title", key)}: {c}')
+    for m in sections['axis']['missing']:
+        lines.append(f'missing segment {m["part"]}: it would add {m["would_add"]}')
+    return {'title': 'What could not be determined', 'lines': lines}
+
+
+def _clean(x):
+    """Return ``x`` with NaN and infinities as None (JSON)."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if hasattr(x, 'item') and not isinstance(x, (str, bytes)):
+        return _clean(x.item())
+    return x
+
+
+def _write_fit(path, ctx):
+    if ctx.fit is None:
+        text = (f'# leadscrew_sim commission: nothing identified (no sweep); the starting '
+                f'values came from {ctx.label}\n/**:\n  ros__parameters: {{}}\n')
+    else:
+        text = params_document(ctx.fit['params'], ctx.label, ctx.fit['res'])
+        text = text.replace('# leadscrew_sim identify:', '# leadscrew_sim commission (identify '
+                            'on the sweep):', 1)
+    write_text(path, text, '-o')
