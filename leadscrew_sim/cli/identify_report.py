@@ -16,6 +16,17 @@ def _g(v):
     return '-' if v != v else f'{v:.7g}'
 
 
+def _static(episodes, most=8):
+    """Return the line naming the segments [s] of the run that carry mu_s."""
+    if not episodes:
+        return ('mu_s is carried by no segment: the thread never breaks away from standstill '
+                'nor slides slowly in contact in the steps compared')
+    shown = ', '.join(f'{a:.3f}-{b:.3f} s' for a, b in episodes[:most])
+    more = f' and {len(episodes) - most} more' if len(episodes) > most else ''
+    return (f'mu_s is carried by {len(episodes)} segments of breakaway from standstill or slow '
+            f'sliding in contact: {shown}{more}')
+
+
 def report(path, out):
     """
     Return the report of a fit as text.
@@ -69,6 +80,10 @@ def report(path, out):
     for vd in res.verdicts:
         kept = '' if vd.fitted else ' (kept at its starting value)'
         lines.append(f'  {vd.name}: {vd.reason}{kept}')
+    for note in getattr(problem, 'conditions', None) or []:
+        lines.append(f'  {note}')
+    if 'mu_s' in res.names and getattr(problem, 'static', None) is not None:
+        lines.append('  ' + _static(problem.static))
     fitted = [i for i, vd in enumerate(res.verdicts) if vd.identified]
     if len(fitted) > 1:
         lines += ['', 'correlation of the identified parameters:']

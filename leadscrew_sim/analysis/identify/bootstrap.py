@@ -39,7 +39,8 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
 
     Each of :data:`BOOTSTRAP` synthetic recordings re-simulates the commands at
     the fitted values with the recorded sensor model and its own seed (not the
-    recording's), so it holds what the recording would hold if the fit were
+    recording's; each quantiser's zero moved within a step by :func:`_dither`),
+    so it holds what the recording would hold if the fit were
     the truth: sensor noise, quantisation, and in velocity and position mode
     that noise acting on the motion through the drive. Each is fitted the
     same way from the fitted values; the RMS of their errors delta_j about
@@ -175,13 +176,16 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
     than STALLED of their offset (they stayed where they started).
     """
     fitted = dict(zip(res.names, res.values))
-    sensors = {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS}
+    sensors = dict(getattr(problem, 'loop_sensors', None) or
+                   {n: getattr(problem.recorded, n) for n in ident.IDEAL_SENSORS})
+    base = dict(sensors)
     meas = problem.measurements
     recorded = (meas.data, meas.mask, problem.anchoring)
     errors, starts, ends, nfev = [], [], [], res.nfev
     try:
         for j in range(BOOTSTRAP):
             sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
+            sensors.update(_dither(sensors, base, sensors['sensor_seed']))
             synthetic = problem.replay(dict(fitted, **sensors), plain=True)
             cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
             data = np.array([cols[s] for s in meas.names])
@@ -205,6 +209,29 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
         meas.data, meas.mask, problem.anchoring = recorded
     return (np.array(errors), _stalled(np.array(starts), np.array(ends), np.array(res.values)),
             nfev)
+
+
+def _dither(sensors, base, seed):
+    """
+    Return the quantisers' biases of a synthetic recording: the recorded ones moved within a step.
+
+    A quantiser without noise reads the same trajectory the same way with
+    every seed, so synthetic recordings of noise-free quantisers would all
+    be one recording and their refits would show nothing of the
+    quantisation's error. Its phase is what a real recording does not fix
+    (the homing's zero lies anywhere within a step): each synthetic
+    recording moves the bias by a uniform share of one step (seeded by
+    ``seed``); the free offsets take the bias itself up.
+    """
+    rng = np.random.default_rng(seed)
+    out = {}
+    u_enc, u_scale = rng.uniform(0.0, 1.0, 2)
+    if base.get('encoder_counts'):
+        out['encoder_bias'] = base.get('encoder_bias', 0.0) + \
+            u_enc * 2.0 * np.pi / base['encoder_counts']
+    if base.get('scale_resolution'):
+        out['scale_bias'] = base.get('scale_bias', 0.0) + u_scale * base['scale_resolution']
+    return out
 
 
 def _widened(vd, v, c, hw, s_b, stalled=''):

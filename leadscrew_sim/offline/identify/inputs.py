@@ -74,9 +74,10 @@ def measurements(path, data, recorded, torque_only, foreign):
     Return (Measurements, {signal: (noise level, how it is known)}) of a recording.
 
     A noise level comes from the sensor where the sensor is known: the
-    recording's sensor parameters, or for a foreign recording those of the
-    starting set (``--preset``, ``--params``, ``--set``); it is then
-    hypot(noise, q / sqrt(12)) with the quantisation step q. Where it is
+    recording's sensor parameters (an ideal sensor there reads exactly: its
+    level is the floor), or for a foreign recording those of the starting
+    set (``--preset``, ``--params``, ``--set``) when they are not ideal; it
+    is then hypot(noise, q / sqrt(12)) with the quantisation step q. Where it is
     not known, it is the data's estimate (:func:`data_level`): the white
     noise of the second differences, and at least q / sqrt(12) of the step
     the readings move in (:func:`reading_quantum`), so that a quantised
@@ -86,6 +87,8 @@ def measurements(path, data, recorded, torque_only, foreign):
     whichever is larger (then told as :data:`FLOOR`).
     """
     levels = sensor_levels(recorded)
+    if not foreign:         # an ideal sensor of our own recording is known: it reads exactly
+        levels = {'screw_angle': 0.0, 'nut_position': 0.0, **levels}
     source = 'the starting set\'s sensor parameters' if foreign else 'sensor parameters'
     signals, sigma, noise = {}, {}, {}
     wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \

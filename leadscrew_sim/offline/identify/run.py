@@ -23,6 +23,7 @@ from .inputs import fit_names, start_params
 from .problem import Problem
 from ..options import open_recording, RunError
 from ...analysis.identify.bootstrap import bootstrap
+from ...analysis.identify.conditional import conditional
 from ...analysis.identify.degeneracy import motion_degeneracies, static_episodes
 from ...analysis.identify import fit as ident
 from ...core.params import ScrewParams
@@ -78,25 +79,36 @@ def fit_recording(args, progress=None):
     plan = Plan(problem, names, start, coords, args.max_nfev)
     weights = dict(problem.measurements.sigma)
     res, initial, final, misfit = _fit(plan)
+    problem.unexplained = _noise_like(problem, final) if misfit else []
+    if problem.unexplained:     # no other minimum explains noise: fail fast, name the signal
+        misfit = _unexplained_why(problem)
     single = None           # the fit in one run, when it missed and restarts replaced it
-    if misfit and args.restarts == 'auto' and problem.restart():
+    if misfit and not problem.unexplained and args.restarts == 'auto' and problem.restart():
         single = _reject(res, misfit)
         problem.stage = 'fit with restarts at the rests'
         res, initial, final, misfit = _fit(plan)
         res.nfev += single.nfev
     second = None           # whether a second attempt explained the recording (None: none)
-    if misfit and problem.anchoring is None:
+    if misfit and problem.anchoring is None and not problem.unexplained:
         problem.stage = 'second fit'
         res, initial, final, misfit = _rescanned(plan, weights, (res, initial, final, misfit))
         second = not misfit
     problem.bootstrap, problem.resolution = {}, {}
     if misfit:      # final stays the rejected fit's: the report's RMS is the verdict's
         res = _reject(res, misfit)
-    elif not problem.foreign and ident.sensor_sigma(problem.recorded) != \
-            ident.sensor_sigma(ScrewParams()):
+    elif any(problem.loop_sensors[n] for n in ('encoder_counts', 'encoder_noise',
+                                               'scale_resolution', 'scale_noise')):
         problem.stage = 'bootstrap of the intervals'
         res = bootstrap(problem, res, names, start, coords, args.max_nfev, plan.bounds)
         final = problem.replay(dict(zip(res.names, res.values)))
+    problem.conditions = []
+    if not misfit:
+        problem.stage = 'refits with the held parameters across their range'
+        res, problem.conditions = conditional(problem.residuals, res, coords, start,
+                                              max_nfev=args.max_nfev,
+                                              jac_steps=problem.jac_steps, exact=problem.exact)
+        if problem.conditions:
+            final = problem.replay(dict(zip(res.names, res.values)))
     params = ScrewParams.from_dict({n: v for n, v, vd in zip(res.names, res.values,
                                                              res.verdicts) if vd.fitted},
                                    base=start)
@@ -227,6 +239,58 @@ def _misfit(problem, final):
         return ''
     return (f'the fit does not explain the recording (RMS / sigma: {", ".join(bad)}; above '
             f'{MISFIT:g} the re-simulation stopped in a wrong minimum or lacks something)')
+
+
+#: Least step-to-step spread of a signal's residual at a rejected fit, in units of its noise
+#: level, that says the noise level, not the minimum, is wrong: a re-simulation is smooth
+#: from step to step, so no parameter set adds or removes that spread, and another search
+#: would not explain it either.
+NOISE_LIKE = MISFIT
+
+
+def _white_spread(d):
+    """
+    Return the white-noise level [unit] of a residual ``d`` from its fourth differences.
+
+    sqrt(mean(d4^2) / 70): the fourth difference of white noise has the
+    variance 70 sigma^2, while a smooth misfit's (a friction error's drift)
+    is far below it; a quantiser's staircase counts as the noise it is.
+    """
+    d4 = np.diff(np.asarray(d, dtype=float), 4)
+    return float(np.sqrt(np.mean(d4 ** 2) / 70.0)) if len(d4) else 0.0
+
+
+def _noise_like(problem, final):
+    """
+    Return [(signal, spread [unit])] whose residual at ``final`` is noise above its level.
+
+    Not on exact data: there every level is the numerical floor, and a wrong
+    minimum's breakaways a step off are spikes far above it.
+    """
+    meas = problem.measurements
+    if problem.exact:
+        return []
+    d = meas.differences(final)
+    out = []
+    for i, name in enumerate(meas.names):
+        m = meas.mask[i]
+        w = _white_spread(d[i][m])
+        if w > NOISE_LIKE * problem.noise[name][0]:
+            out.append((name, w))
+    return out
+
+
+def _unexplained_why(problem):
+    """Return the rejection of a fit whose signals carry noise above their levels."""
+    parts = []
+    for name, w in problem.unexplained:
+        sigma, how = problem.noise[name]
+        parts.append(f'{name} is not explained: its residual\'s step-to-step spread '
+                     f'{w:.3g} {problem.measurements.units[name]} is {w / sigma:.3g} times '
+                     f'its noise level ({how})')
+    return ('the fit does not explain the recording (' + '; '.join(parts) + '; no '
+            'parameter set of a re-simulation adds such noise: give the sensor\'s resolution '
+            'and noise, e.g. --set scale_resolution=..., --set scale_noise=...)')
 
 
 def _reject(res, why):
