@@ -1,6 +1,5 @@
 """
-``leadscrew_sim identify`` on recordings with the sensors of a real axis, and
-noise-free.
+``leadscrew_sim identify`` on recordings with a real axis's sensors, and noise-free.
 
 The axis is tr12x3: vertical for velocity steps and the sweep (the payload's
 weight loads the thread), horizontal for the torque steps (no load: at rest the
@@ -129,7 +128,7 @@ def _foreign(*extra):
 
 
 def _check_quantised_scale(rec, *options):
-    """The quantised scale read as a foreign recording: its level from the steps; mu_s, mu_k."""
+    """Fit the quantised scale read as a foreign recording; check its level, mu_s and mu_k."""
     out, wall = _identify(rec, *_foreign(*options))
     sigma, how = out['problem'].noise['nut_position']
     # whatever the source, the level holds the quantisation of a reading: q / sqrt(12)
