@@ -135,6 +135,10 @@ class FoxgloveClient:
             {'name': k, 'value': v} for k, v in values.items()]}))
         return self._answer(request_id, timeout)
 
+    def subscribe_parameters(self, names):
+        """Ask for parameterValues whenever one of ``names`` changes."""
+        self.ws.send(json.dumps({'op': 'subscribeParameterUpdates', 'parameterNames': names}))
+
     def _answer(self, request_id, timeout):
         def found():
             return next((m for m in self.parameter_values if m.get('id') == request_id), None)

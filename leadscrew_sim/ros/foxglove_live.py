@@ -128,6 +128,11 @@ class LiveView:
         """Stop serving."""
         self.server.stop()
 
+    def parameters_set(self, parameters):
+        """Send a batch the node took (rclpy Parameters) to the clients following them."""
+        values = [_foxglove_value(p.name, p.value) for p in parameters]
+        self.server.publish_parameter_values([v for v in values if v is not None])
+
     # -- the SDK's threads -----------------------------------------------------
     def _put(self, item):
         if len(self._inbox) >= INBOX_SIZE:

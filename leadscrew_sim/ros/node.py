@@ -179,6 +179,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             self.recorder.add_metadata(UPDATE_RECORD, dict(
                 {k: str(getattr(change.settings, k)) for k in change.run},
                 log_time_ns=str(self._sim_now())))
+        if self._live is not None:
+            self._live.parameters_set(parameters)
         return SetParametersResult(successful=True)
 
     def _apply_settings(self, names, new):

@@ -1,6 +1,8 @@
 """
-The live view against bad clients: garbage, unknown channels, oversized messages, a client
-that never reads, a port in use. Each is counted in ``diagnostics`` and the node keeps its rate.
+The live view against bad clients, each counted in ``diagnostics`` while the node keeps its rate.
+
+The cases: garbage frames, unknown channels, oversized messages, a client
+that never reads, a port in use.
 
 The clients are the test's own (test/foxglove_client.py, from the published
 protocol); rosbags decodes the diagnostics.

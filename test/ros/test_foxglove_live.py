@@ -9,9 +9,11 @@ schemas: nothing of leadscrew_sim reads what the server sends.
 import math
 
 from foxglove_client import FoxgloveClient, free_port
-from helpers import start_node
+from helpers import NODE, start_node
 from leadscrew_sim.core import load_preset
 import pytest
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter as RosParameter
 from rosbags.typesys import get_types_from_msg, Stores, get_typestore
 
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -131,10 +133,12 @@ def test_torque_command_from_client_moves_nut(live_node):
 
 
 @pytest.mark.timeout(60)
-def test_parameters_get_set_and_batch_refusal(live_node):
+def test_parameters_get_set_and_batch_refusal(live_node, ros):
     proc, c = live_node
     got = c.get_parameters(['backlash', 'update_rate', 'preset'], 'get1')
     assert got['update_rate'] == 1000.0 and got['preset'] == 'tr12x3', got
+    everything = c.get_parameters([], 'all')          # the Parameters panel asks for all
+    assert {'backlash', 'mu_k', 'update_rate', 'foxglove_port'} <= set(everything)
     b0 = got['backlash']
     assert c.set_parameters({'backlash': 5e-5}, 'set1') == {'backlash': 5e-5}
     assert c.get_parameters(['backlash'], 'get2') == {'backlash': 5e-5}
@@ -148,3 +152,12 @@ def test_parameters_get_set_and_batch_refusal(live_node):
     assert c.set_parameters({'update_rate': 10.0}, 'set4') == {'update_rate': 1000.0}
     assert c.get_parameters(['backlash'], 'get3') == {'backlash': 0.0}
     assert b0 != 0.0
+    # A change over ROS reaches a client that follows the parameter.
+    c.subscribe_parameters(['backlash'])
+    c.poll_until(lambda: False, 0.3)
+    req = SetParameters.Request(parameters=[
+        RosParameter('backlash', value=3e-5).to_parameter_msg()])
+    assert ros.call(SetParameters, f'{NODE}/set_parameters', req).results[0].successful
+    assert c.poll_until(lambda: any(
+        m.get('id') is None and {'name': 'backlash', 'type': 'float64', 'value': 3e-5}
+        in m['parameters'] for m in c.parameter_values), 10.0), c.parameter_values[-3:]
