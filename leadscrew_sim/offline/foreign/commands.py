@@ -9,8 +9,9 @@ The commands of a foreign recording: decoded by type and sampled on the step gri
   ``--command-joint``, through the node's mode rule (:class:`CommandHold`).
 - ``trajectory_msgs/JointTrajectory`` (joint_trajectory_controller): the
   position of ``--command-joint`` sampled at every step as the controller
-  samples it: the points lie at the header stamp (the receipt time when the
-  stamp is zero) plus their ``time_from_start``; between two points linear in
+  samples it: the points lie at the header stamp (in the states' clock; the
+  receipt time plus the delay when the stamp is zero) plus their
+  ``time_from_start``; between two points linear in
   position, cubic Hermite where both carry velocities; from the receipt to
   the first point from the position (and velocity) held then; after the last
   point its position held. A new trajectory replaces the old one from its
@@ -148,14 +149,14 @@ class Commands:
                 self.skipped += 1
                 continue
             j = names.index(name)
-            start = stamp if stamp else int(t)
-            at = np.array([start + p[4] for p in points], dtype=np.int64)
+            at = np.array([(stamp if stamp else 0) + p[4] for p in points], dtype=np.int64)
             pos = np.array([p[0][j] if j < len(p[0]) else _NAN for p in points])
             vel = np.array([p[1][j] if j < len(p[1]) else _NAN for p in points])
             if not np.isfinite(pos).all() or (np.diff(at) <= 0).any():
                 self.skipped += 1
                 continue
-            self.trajectories.append((at, pos, vel if np.isfinite(vel).all() else None))
+            self.trajectories.append((at, pos, vel if np.isfinite(vel).all() else None,
+                                      not stamp))
             kept.append(t)
         self.times = np.array(kept, dtype=np.int64)
 
@@ -171,7 +172,8 @@ class Commands:
         """Return (first, last) time a command sets [ns]: receipts, or the trajectories' ends."""
         last = int(self.times[-1])
         if self.kind == 'trajectory':
-            last = max(last, max(int(a[-1]) for a, _p, _v in self.trajectories))
+            last = max(last, max(int(a[-1]) + (int(t) if relative else 0) for t, (
+                a, _p, _v, relative) in zip(self.times, self.trajectories)))
         return int(self.times[0]), last
 
     def rows(self, t0, dt_ns, n, hold, delay_ns, start=None):
@@ -201,7 +203,7 @@ class Commands:
                 hold.joint_commands([label], [p], [v], [e], int(t))
                 cmd[i] = hold.command_at(int(t))
             return _held(rows, ks, cmd)
-        targets = self.sample(t0 - delay_ns, dt_ns, n, ks, start)
+        targets = self.sample(t0, dt_ns, n, ks, delay_ns, start)
         ok = np.isfinite(targets)
         if self.role == 'nut':
             theta = hold.nut_map.position(targets[ok])
@@ -211,16 +213,21 @@ class Commands:
         rows[ok, 1] = theta
         return rows
 
-    def sample(self, t0, dt_ns, n, ks, start=None):
+    def sample(self, t0, dt_ns, n, ks, delay_ns=0, start=None):
         """
         Return the trajectories' position [m or rad] at each step's start (NaN before the first).
 
-        Step k samples at ``t0 + k dt``; trajectory i is in force from step
-        ``ks[i]`` until the next one's.
+        Step k samples at ``t0 + k dt`` (the states' clock); trajectory i is in
+        force from step ``ks[i]`` until the next one's. Stamped points lie at
+        their stamp (the states' clock, as the robot's controller samples them);
+        the points of a trajectory with a zero stamp from its receipt plus the
+        delay.
         """
         out = np.full(n, _NAN)
         held_p, held_v = (start if start is not None else _NAN), 0.0
-        for i, (at, pos, vel) in enumerate(self.trajectories):
+        for i, (at, pos, vel, relative) in enumerate(self.trajectories):
+            if relative:
+                at = at + int(self.times[i]) + delay_ns
             k0 = max(0, int(ks[i]))
             k1 = n if i + 1 == len(self.trajectories) else min(n, max(k0, int(ks[i + 1])))
             if k0 >= n:
