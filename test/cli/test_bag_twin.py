@@ -1,5 +1,5 @@
 """
-The twin against a real axis's bag: ``resim BAG --preset``, ``identify BAG``, ``info BAG``, ``plot BAG``.
+The twin against a real axis's bag: ``resim BAG --preset``, ``identify``, ``info``, ``plot``.
 
 The bags are made by rosbags (bag_factory) in ros2_control's layout from
 ``simulate`` runs with secret values chosen here: joint_state_broadcaster's
@@ -20,7 +20,7 @@ import math
 import re
 
 import bag_factory as B
-from helpers import cli, cli_ok
+from helpers import cli_ok
 import numpy as np
 import pytest
 
@@ -74,7 +74,7 @@ def _forward_bag(tmp, sets, name, seed=1):
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
-    """The bags of the tests: forward commands (one file, split, cut), flat axis, trajectory."""
+    """Make the bags of the tests: forward commands (one file, split), flat axis, trajectory."""
     tmp = tmp_path_factory.mktemp('bags')
     out = {}
     msgs, n = _forward_bag(tmp, {**SENSORS, **SECRET}, 'forward')
@@ -90,7 +90,7 @@ def bags(tmp_path_factory):
 
 
 def _trajectory_bag(tmp):
-    """A joint_trajectory_controller move through four points with velocities."""
+    """Make a bag of a joint_trajectory_controller move: four points with velocities."""
     from scipy.interpolate import CubicHermiteSpline
     at = np.array([0.2, 0.9, 1.6, 2.4])            # s after the stamp
     pos = np.array([0.0, 0.006, 0.009, 0.003])
