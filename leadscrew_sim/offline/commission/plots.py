@@ -22,12 +22,13 @@ def _uri(plt, fig):
     return 'data:image/png;base64,' + base64.b64encode(buf.getvalue()).decode('ascii')
 
 
-def twin(ctx, parts):
+def twin(ctx, windows):
     """Return measured and twin nut position over the held-out parts, and their difference [um]."""
     plt, fig, (ax, axe) = _fig(2)
     m = ctx.measured
+    parts = list(windows)
     for part in parts:
-        a, b = ctx.windows[part]
+        a, b = windows[part]
         k = m.window(a, b)
         tw = np.interp(m.time[k], ctx.twin_time, ctx.twin['nut_position'])
         ax.plot(m.time[k], m.nut_position[k] * 1e3, '.', ms=1.0, color='0.4',
@@ -85,14 +86,16 @@ def bode(section):
     for d, style, label in ((meas, '.', 'measured H1'), (lin, '-', 'twin linear model')):
         if d:
             am.semilogx(d['frequency'], d['magnitude_db'], style, ms=2, label=label)
-            ap.semilogx(d['frequency'], d['phase_deg'], style, ms=2, label=label)
+            ap.semilogx(d['frequency'], np.mod(d['phase_deg'], 360.0) - 360.0, style, ms=2,
+                        label=label)
     if meas:
         ac.semilogx(meas['frequency'], meas['coherence'], '.', ms=2)
     ny = section.get('drive_nyquist_hz')
     for ax in (am, ap, ac):
         if ny:
             ax.axvline(ny, color='k', lw=0.5, ls=':')
-    am.set_ylabel('|motor velocity / velocity command| [dB re 1 rad/m]')
+    am.set_ylabel('|H| [dB re 1 rad/m]')
+    am.set_title('motor velocity [rad/s] / velocity command [m/s]', fontsize=9)
     ap.set_ylabel('phase [deg]')
     ac.set_ylabel('coherence [-]')
     ac.set_xlabel('frequency [Hz]')

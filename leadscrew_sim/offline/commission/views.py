@@ -62,8 +62,9 @@ def twin(ctx, s):
         if s.get('drifting'):
             b.append(('table', ['drifting part (not fitted)', 'RMS [um]', 'max [um]'],
                       [[p, d['rms_um'], d['max_um']] for p, d in s['drifting'].items()]))
-        b.append(('p', 'The fit saw ' + '; '.join(ctx.fitted_on) + '. ' + s['sensors'] + '.'))
-        b.append(('img', plots.twin(ctx, s['held_out_parts']),
+        b.append(('p', 'The fit saw the ' + '; '.join(ctx.fitted_on) + '. The twin reads '
+                       + s['sensors'].split('the twin reads ', 1)[-1] + '.'))
+        b.append(('img', plots.twin(ctx, {p: d['window'] for p, d in s['parts'].items()}),
                   'measured and twin nut position on the held-out parts'))
     return b
 
@@ -80,9 +81,14 @@ def friction(ctx, s):
                   [[f'toward {k}theta', v] for k, v in s['breakaway'].items()]))
     if s.get('stribeck'):
         eff, tw = s.get('efficiency_measured', {}), s.get('efficiency_twin', {})
-        b.append(('table', ['efficiency at the fastest level', 'measured', 'twin (closed form)'],
-                  [['forward', eff.get('forward'), tw.get('forward')],
-                   ['back-driving', eff.get('backdrive'), tw.get('backdrive')]]))
+        th = s.get('efficiency_thread', {})
+        b.append(('table', ['efficiency at the fastest level', 'measured', 'twin',
+                            'thread alone (closed form)'],
+                  [['forward', eff.get('forward'), tw.get('forward'), th.get('forward')],
+                   ['back-driving', eff.get('backdrive'), tw.get('backdrive'),
+                    th.get('backdrive')]]))
+        b.append(('p', 'Measured and twin: load power over motor power on the level (bearing '
+                       'and guide losses included); the closed form is the thread\'s alone.'))
         b.append(('img', plots.stribeck(s), 'Stribeck points'))
     return b
 

@@ -46,10 +46,11 @@ def run(ctx):
                                     for q in twin]
         rows, best = F.efficiencies(pts, load) if load else ([], {})
         section['efficiency_measured'] = best
+        section['efficiency_twin'] = F.efficiencies(twin, load)[1] if load else {}
         if pts:
             fastest = max(abs(q.speed) for q in pts)
             fwd, back = efficiency_closed_form(p, fastest)
-            section['efficiency_twin'] = {'speed': fastest, 'forward': fwd, 'backdrive': back}
+            section['efficiency_thread'] = {'speed': fastest, 'forward': fwd, 'backdrive': back}
         if not load:
             section['cannot'].append('no axial load: the efficiencies are undefined')
     else:

@@ -1,0 +1,65 @@
+"""
+Benchmark ``leadscrew_sim commission`` on the default commission recording of tr12x3.
+
+Run: .venv/bin/python bench/bench_commission.py [--repeat 1] [--seed 11]
+
+``simulate --excite commission`` records tr12x3 with its friction moved by the
+identification tests' factors (mu_s x1.25, mu_k x0.8, Stribeck velocity
+x1.3) and the axis's own sensors (a 16-bit encoder with half a count of
+noise, a 1 um linear scale with 0.5 um of noise); ``commission`` then runs
+as a subprocess (all stages). Printed: the wall time of the whole command,
+each stage's time (from report.json), the fitted values against the truth
+and the held-out error.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+FACTORS = dict(mu_s=1.25, mu_k=0.8, stribeck_velocity=1.3)
+
+
+def main():
+    """Record once, commission ``--repeat`` times; print the figures."""
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    ap.add_argument('--repeat', type=int, default=1)
+    ap.add_argument('--seed', type=int, default=11)
+    a = ap.parse_args()
+    from leadscrew_sim import load_preset
+    p0 = load_preset('tr12x3')
+    truth = {n: getattr(p0, n) * f for n, f in FACTORS.items()}
+    sensors = dict(encoder_counts=2 ** 16, encoder_noise=0.5 * 2 * math.pi / 2 ** 16,
+                   scale_resolution=1e-6, scale_noise=5e-7, sensor_seed=a.seed)
+    sets = [x for n, v in dict(truth, **sensors).items() for x in ('--set', f'{n}={v!r}')]
+    cli = [sys.executable, '-m', 'leadscrew_sim.cli']
+    with tempfile.TemporaryDirectory() as d:
+        rec = os.path.join(d, 'run.mcap')
+        subprocess.run(cli + ['simulate', '--preset', 'tr12x3', '--excite', 'commission', *sets,
+                              '-q', '-o', rec], check=True, env=dict(os.environ))
+        print(f'command: leadscrew_sim commission RUN -o DIR  (RUN: simulate --preset tr12x3 '
+              f'--excite commission {" ".join(sets)})')
+        for k in range(a.repeat):
+            out = os.path.join(d, f'out{k}')
+            t0 = time.perf_counter()
+            subprocess.run(cli + ['commission', rec, '-o', out, '-q'], check=True,
+                           env=dict(os.environ))
+            wall = time.perf_counter() - t0
+            with open(os.path.join(out, 'report.json')) as fh:
+                r = json.load(fh)
+            stages = ', '.join(f'{n} {t:.2f}' for n, t in r['timings_s'].items())
+            print(f'run {k + 1}: {wall:.1f} s wall (process), stages [s]: {stages}')
+        for row in r['sections']['identify']['parameters']:
+            err = (row['value'] - truth[row['name']]) / truth[row['name']]
+            print(f'  {row["name"]}: {row["value"]:.6g} (truth {truth[row["name"]]:.6g}, '
+                  f'{err:+.2%}), 95 % [{row["lower"]:.6g}, {row["upper"]:.6g}]')
+        h = r['sections']['twin']['held_out']
+        print(f'  held-out (reversals): RMS {h["rms_um"]:.3g} um = {h["rms_over_noise"]:.3g} '
+              f'noise, max {h["max_um"]:.3g} um')
+
+
+if __name__ == '__main__':
+    main()
