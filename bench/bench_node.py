@@ -184,7 +184,7 @@ def foxglove_client(port, duration, stats_path):
     counts = dict.fromkeys(subs.values(), 0)
     nbytes = 0
     ws.settimeout(1.0)
-    t0 = time.monotonic()
+    t0, cpu0 = time.monotonic(), time.process_time()
     while time.monotonic() - t0 < duration:
         try:
             opcode, frame = ws.recv_data()
@@ -195,7 +195,8 @@ def foxglove_client(port, duration, stats_path):
             nbytes += len(frame)
     wall = time.monotonic() - t0
     Path(stats_path).write_text(json.dumps(dict(
-        topics=len(subs), messages_per_s=sum(counts.values()) / wall,
+        topics=len(subs), cpu=(time.process_time() - cpu0) / wall,
+        messages_per_s=sum(counts.values()) / wall,
         bytes_per_s=nbytes / wall, per_topic={t: n / wall for t, n in counts.items()})))
     ws.close()
 
@@ -358,7 +359,8 @@ def foxglove_runs(node_argv, node_stats, tmp, duration):
           f'{idle["foxglove_loaded"]}, 1 client {one["foxglove_loaded"]}')
     print(f'client: {c["topics"]} topics, {c["messages_per_s"]:.0f} messages/s, '
           f'{c["bytes_per_s"] / 1e6:.2f} MB/s; /joint_states '
-          f'{c["per_topic"].get("/joint_states", 0.0):.1f} /s')
+          f'{c["per_topic"].get("/joint_states", 0.0):.1f} /s; the client process itself '
+          f'{100 * c["cpu"]:.1f} % of a core')
     print(f'CPU rise with the client: {100 * (one["cpu"] - off["cpu"]):+.1f} % of a core '
           f'(served idle: {100 * (idle["cpu"] - off["cpu"]):+.1f} %)')
     return 0
