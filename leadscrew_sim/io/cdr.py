@@ -364,6 +364,38 @@ def decode_float64_multi_array(data):
     return r.f64_seq()
 
 
+def decode_float64_multi_arrays(messages):
+    """
+    Return the ``data`` of many Float64MultiArray messages as a float array (n, m), or None.
+
+    At once when every message has the first one's length and the bytes
+    before its data (layout and length) are the same in all: the commands of
+    one controller; else None (decode them one by one).
+    """
+    n = len(messages)
+    if not n:
+        return None
+    rows = messages if isinstance(messages, np.ndarray) else None
+    if rows is None:
+        if len({len(d) for d in messages}) != 1:
+            return None
+        rows = np.frombuffer(b''.join(bytes(d) for d in messages), dtype=np.uint8).reshape(n, -1)
+    r = CdrReader(bytes(rows[0]))
+    if r.e != '<':
+        return None
+    for _ in range(r.u32()):
+        r.string()
+        r.u32()
+        r.u32()
+    r.u32()
+    m = r.u32()
+    r._align(8)
+    start = r.pos
+    if start + 8 * m != rows.shape[1] or not (rows[:, :start] == rows[0, :start]).all():
+        return None
+    return np.ascontiguousarray(rows[:, start:]).view('<f8').reshape(n, m)
+
+
 def decode_joint_trajectory(data):
     """
     Return (stamp_ns, joint names, points) of a serialized trajectory_msgs/JointTrajectory.

@@ -89,6 +89,10 @@ class Commands:
         else:
             index = mapping.command_index if mapping.command_index is not None else 0
             values = np.empty(len(datas))
+            table = C.decode_float64_multi_arrays(datas)
+            if table is not None and index < table.shape[1]:
+                values = table[:, index].copy()
+                datas = []              # read at once: nothing left to decode
             for i, d in enumerate(datas):
                 a = C.decode_float64_multi_array(bytes(d))
                 if index >= len(a):
