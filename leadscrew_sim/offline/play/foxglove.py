@@ -4,9 +4,9 @@
 The recording's channels are advertised with the schemas the file carries
 (ros2msg for a ros2 recording) and the ``cdr`` encoding; the messages go out
 with their recorded bytes and log times, on the recorded schedule scaled by
-the speed factor. Latched channels (transient local in the recording:
-robot_description, /tf_static, the switches) are sent again to every new
-subscriber, so the 3D panel shows the axis whenever a client connects.
+the speed factor. Latched channels (transient local in the recording: in the
+node's recordings robot_description and /tf_static) are sent again to every
+new subscriber, so the 3D panel shows the axis whenever a client connects.
 """
 import sys
 import time
