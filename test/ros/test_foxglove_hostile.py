@@ -60,7 +60,7 @@ def test_bad_clients_counted_and_rate_holds(run_exe):
     time.sleep(0.2)
     bad.send_binary(b'\x01' + struct.pack('<I', 1) + b'\x00\x01\x00\x00' + bytes(200_000))
     bad.send_binary(b'\x01' + struct.pack('<I', 2) + b'\x00\x01\x00\x00' + bytes(8))
-    for _ in range(2000):                                  # a burst of garbage frames
+    for _ in range(500):                                   # a burst of garbage frames
         bad.send_binary(b'\xff' + bytes(16))
 
     # Counted (the SDK reports the sleeper's full outbox), and the loop kept 1 kHz.
@@ -72,7 +72,7 @@ def test_bad_clients_counted_and_rate_holds(run_exe):
     assert watch.poll_until(lambda: len(watch.data[js]) >= 200, 5.0), 'the watcher starved'
     last = diagnostics(watch, diag)[-1]
     assert proc.proc.poll() is None, proc.output()
-    assert int(last['foxglove_bad_frames']) >= 2003, last
+    assert int(last["foxglove_bad_frames"]) >= 503, last
     assert int(last['foxglove_unknown_channels']) >= 1, last
     assert int(last['foxglove_oversized']) == 1, last
     assert int(last['foxglove_refused']) == 1, last
