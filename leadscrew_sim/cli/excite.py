@@ -17,7 +17,7 @@ import math
 from .args import add_deprecated_alias
 from ..offline.options import (check_finite, DEFAULT_PRESET, load_params, parse_options,
                                parse_sets, RunError)
-from ..analysis.excitation.profiles import make_profile, PROFILES
+from ..analysis.excitation.profiles import ALL_PROFILES as PROFILES, make_profile
 
 HELP = ('publish an identification profile as commands (breakaway, sweep, reversals, iso230, '
         'chirp, multisine, commission)')

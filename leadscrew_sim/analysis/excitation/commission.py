@@ -182,5 +182,5 @@ class Commission:
         return lines
 
 
-#: Name -> class, for :data:`.profiles.PROFILES`.
+#: Name -> class, for :data:`.profiles.ALL_PROFILES`.
 COMMISSION = {Commission.name: Commission}

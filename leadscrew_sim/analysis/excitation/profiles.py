@@ -32,7 +32,7 @@ from .base import (Builder, check_speed, nut_speed_limit, stroke_room, Profile,
                    ProfileError, Segment, STROKE_MARGIN)
 from .resolution import RESOLVE, stribeck_notes, velocity_quantum
 
-__all__ = ['PROFILES', 'ProfileError', 'Segment', 'make_profile', 'BreakawayRamp',
+__all__ = ['ALL_PROFILES', 'PROFILES', 'ProfileError', 'Segment', 'make_profile', 'BreakawayRamp',
            'SpeedSweep', 'Reversals', 'Iso230', 'static_breakaway']
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -477,7 +477,9 @@ PROFILES = {cls.name: cls for cls in (BreakawayRamp, SpeedSweep, Reversals, Iso2
 from .broadband import BROADBAND  # noqa: E402 (it imports static_breakaway from here)
 PROFILES.update(BROADBAND)
 from .commission import COMMISSION  # noqa: E402 (it builds the profiles above)
-PROFILES.update(COMMISSION)
+#: Every name ``make_profile`` builds: the single profiles and the chained commission run
+#: (not a single profile: a part per command kind).
+ALL_PROFILES = dict(PROFILES, **COMMISSION)
 
 
 def make_profile(name, params, **options):
@@ -487,7 +489,7 @@ def make_profile(name, params, **options):
     Parameters
     ----------
     name : str
-        A key of :data:`PROFILES`.
+        A key of :data:`ALL_PROFILES` (a single profile, or ``commission``).
     params : ScrewParams
         The axis (stroke, limits, lead, initial position).
     **options
@@ -495,8 +497,8 @@ def make_profile(name, params, **options):
 
     """
     try:
-        cls = PROFILES[name]
+        cls = ALL_PROFILES[name]
     except KeyError:
         raise ProfileError(name, 'name', '', f'unknown excitation profile {name!r} (profiles: '
-                           f'{", ".join(PROFILES)})') from None
+                           f'{", ".join(ALL_PROFILES)})') from None
     return cls(params, **options)
