@@ -220,16 +220,18 @@ def _dither(sensors, base, seed):
     be one recording and their refits would show nothing of the
     quantisation's error. Its phase is what a real recording does not fix
     (the homing's zero lies anywhere within a step): each synthetic
-    recording moves the bias by a uniform share of one step (seeded by
-    ``seed``); the free offsets take the bias itself up.
+    recording moves the bias of a quantiser without noise by a uniform share
+    of one step (seeded by ``seed``); the free offsets take the bias itself
+    up. A noisy quantiser's phase is already random with each seed, and its
+    bias stays (a position loop over it would move with the bias).
     """
     rng = np.random.default_rng(seed)
     out = {}
     u_enc, u_scale = rng.uniform(0.0, 1.0, 2)
-    if base.get('encoder_counts'):
+    if base.get('encoder_counts') and not base.get('encoder_noise'):
         out['encoder_bias'] = base.get('encoder_bias', 0.0) + \
             u_enc * 2.0 * np.pi / base['encoder_counts']
-    if base.get('scale_resolution'):
+    if base.get('scale_resolution') and not base.get('scale_noise'):
         out['scale_bias'] = base.get('scale_bias', 0.0) + u_scale * base['scale_resolution']
     return out
 
