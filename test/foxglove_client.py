@@ -32,7 +32,8 @@ class FoxgloveClient:
 
     def __init__(self, port, timeout=60.0, proc=None, rcvbuf=None):
         """
-        Connect (retrying until the server listens or ``timeout`` [s]); read serverInfo.
+        Connect (retrying until the server listens, ``timeout`` [s], or ``proc`` ends); read
+        serverInfo.
 
         ``rcvbuf``: the socket's receive buffer [bytes] (small: a client that
         stops reading stalls the server's sends sooner).
@@ -46,7 +47,8 @@ class FoxgloveClient:
                     sockopt=opts)
                 break
             except (OSError, websocket.WebSocketException):
-                if time.monotonic() > end or (proc is not None and proc.proc.poll() is not None):
+                popen = getattr(proc, 'proc', proc)     # a NodeProcess or a Popen
+                if time.monotonic() > end or (popen is not None and popen.poll() is not None):
                     raise
                 time.sleep(0.2)
         self.channels = {}        # topic -> advertised channel dict

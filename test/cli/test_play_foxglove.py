@@ -39,7 +39,7 @@ def test_play_foxglove_serves_recording_with_its_timing(tmp_path):
          '--speed-factor', '0.5', '--wait-subscribers', '2', '--wait-timeout', '30'],
         stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ))
     try:
-        c = FoxgloveClient(port, timeout=40.0)
+        c = FoxgloveClient(port, timeout=40.0, proc=proc)
         assert c.wait_channels(['/joint_states', '/robot_description'])
         assert c.channels['/joint_states']['encoding'] == 'cdr'
         js = c.subscribe('/joint_states')
@@ -65,6 +65,52 @@ def test_play_foxglove_serves_recording_with_its_timing(tmp_path):
     t = [lt for lt, _d in recorded['/joint_states']]
     assert abs(span - 2 * (t[-1] - t[0]) / 1e9) < 0.25, span
     assert 'served' in out, out
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_play_foxglove_serves_a_rosbag2_bag(tmp_path, storage):
+    """A bag written by rosbags: every message's bytes and log time reach the client."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    JointState, Header, Time = (ts.types[t] for t in (
+        'sensor_msgs/msg/JointState', 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time'))
+    import numpy as np
+    t0 = 1_700_000_000 * 10**9
+    sent = []
+    with Writer(tmp_path / 'bag', version=9, storage_plugin=getattr(
+            StoragePlugin, storage.upper())) as w:
+        conn = w.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=ts)
+        for i in range(100):
+            t = t0 + i * 2_000_000
+            msg = JointState(header=Header(stamp=Time(sec=t // 10**9, nanosec=t % 10**9),
+                                           frame_id=''), name=['screw_joint'],
+                             position=np.array([i * 0.01]), velocity=np.array([]),
+                             effort=np.array([]))
+            data = bytes(ts.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+            w.write(conn, t, data)
+            sent.append((t, data))
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, '-c', NO_ROS, 'play', str(tmp_path / 'bag'), '--foxglove', str(port),
+         '--wait-subscribers', '1', '--wait-timeout', '30'],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=dict(os.environ))
+    try:
+        try:
+            c = FoxgloveClient(port, timeout=40.0, proc=proc)
+        except OSError:
+            proc.kill()
+            raise AssertionError(proc.stdout.read()) from None
+        assert c.wait_channels(['/joint_states'])
+        assert c.channels['/joint_states']['schemaName'] == 'sensor_msgs/msg/JointState'
+        sub = c.subscribe('/joint_states')
+        assert c.poll_until(lambda: len(c.data[sub]) >= len(sent), 20.0), len(c.data[sub])
+        assert proc.wait(timeout=20) == 0, proc.stdout.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert c.data[sub] == sent
 
 
 def test_play_foxglove_bad_port_and_port_in_use(tmp_path):

@@ -39,11 +39,17 @@ def _channels(rec, topics, remap):
     for ch in rec.channels.values():
         if ch.topic not in topics or remap.get(ch.topic, ch.topic) in channels:
             continue
-        schema = rec.schemas.get(ch.schema_id)
-        if schema is None or not schema.data:
-            raise RunError(f'{ch.topic}: the recording has no schema for it')
         served = remap.get(ch.topic, ch.topic)
-        channels[served] = (schema.name, schema.encoding, schema.data)
+        schema = rec.schemas.get(ch.schema_id)
+        if schema is not None and schema.data:
+            channels[served] = (schema.name, schema.encoding, schema.data)
+        else:                       # a bag without definitions: the installed one
+            type_name = rec.topic_types.get(ch.topic, '')
+            try:
+                channels[served] = (type_name, 'ros2msg', ros2msg_definition(type_name).encode())
+            except (DefinitionNotFoundError, ValueError) as exc:
+                raise RunError(f'{ch.topic}: the recording has no schema for {type_name!r} and '
+                               f'none is installed ({exc})') from None
         if _latched(dict(ch.metadata)):
             latched.append(served)
     return channels, latched
