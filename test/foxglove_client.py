@@ -32,8 +32,10 @@ class FoxgloveClient:
 
     def __init__(self, port, timeout=60.0, proc=None, rcvbuf=None):
         """
-        Connect (retrying until the server listens, ``timeout`` [s], or ``proc`` ends); read
-        serverInfo.
+        Connect, retrying until the server listens; read serverInfo.
+
+        Gives up after ``timeout`` [s] or when ``proc`` (a NodeProcess or a
+        Popen of the server) has ended.
 
         ``rcvbuf``: the socket's receive buffer [bytes] (small: a client that
         stops reading stalls the server's sends sooner).
