@@ -136,9 +136,7 @@ class Exciter:
                 rclpy.shutdown(context=context)
 
     def _run(self, node, context, wait_timeout):
-        """Create the publisher, wait, publish; return the exit code."""
-        from rclpy.clock import Clock, ClockType
-        from rclpy.duration import Duration
+        """Create the publishers and the executor, then publish; return the exit code."""
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float64
         from .interfaces import message_class, qos_profile
@@ -155,6 +153,17 @@ class Exciter:
                                        qos_profile(TOPIC_SPECS['nut_position'][2]))
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
+        try:
+            return self._publish(node, executor, pubs, pub, sub, latest, name, wait_timeout)
+        finally:
+            # shut down before the context is: a collected executor's __del__ after
+            # rclpy.shutdown raises (printed as an ignored exception)
+            executor.shutdown()
+
+    def _publish(self, node, executor, pubs, pub, sub, latest, name, wait_timeout):
+        """Wait for the axis, publish the profile; return the exit code."""
+        from rclpy.clock import Clock, ClockType
+        from rclpy.duration import Duration
         self.out(f'excite: {self.profile.describe()}; {self.profile.duration:.3f} s at '
                  f'{self.rate:g} Hz on {name}')
         if self._wait_for_axis(node, executor, pub, sub, latest, name, wait_timeout):
