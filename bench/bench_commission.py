@@ -8,13 +8,15 @@ identification tests' factors (mu_s x1.25, mu_k x0.8, Stribeck velocity
 x1.3) and the axis's own sensors (a 16-bit encoder with half a count of
 noise, a 1 um linear scale with 0.5 um of noise); ``commission`` then runs
 as a subprocess (all stages). Printed: the wall time of the whole command,
-each stage's time (from report.json), the fitted values against the truth
-and the held-out error.
+its CPU time (one core: the bound of the wall time on an idle host) and the
+load average, the stage lines on stderr, each stage's time (from
+report.json), the fitted values against the truth and the held-out error.
 """
 import argparse
 import json
 import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -45,13 +47,18 @@ def main():
         for k in range(a.repeat):
             out = os.path.join(d, f'out{k}')
             t0 = time.perf_counter()
-            subprocess.run(cli + ['commission', rec, '-o', out, '-q'], check=True,
+            c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            subprocess.run(cli + ['commission', rec, '-o', out], check=True,
                            env=dict(os.environ))
             wall = time.perf_counter() - t0
+            c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime
+            load = os.getloadavg()[0]
             with open(os.path.join(out, 'report.json')) as fh:
                 r = json.load(fh)
             stages = ', '.join(f'{n} {t:.2f}' for n, t in r['timings_s'].items())
-            print(f'run {k + 1}: {wall:.1f} s wall (process), stages [s]: {stages}')
+            print(f'run {k + 1}: {wall:.1f} s wall, {cpu:.1f} s CPU (process; load average '
+                  f'{load:.1f}), stages [s]: {stages}')
         for row in r['sections']['identify']['parameters']:
             err = (row['value'] - truth[row['name']]) / truth[row['name']]
             print(f'  {row["name"]}: {row["value"]:.6g} (truth {truth[row["name"]]:.6g}, '

@@ -112,7 +112,7 @@ def stability(section):
     if len(mu) > 1:
         mesh = ax.pcolormesh(v, mu, np.sign(g), cmap='coolwarm', vmin=-1, vmax=1,
                              shading='nearest')
-        fig.colorbar(mesh, ax=ax, label='sign of growth rate [-] (+1 stick-slip)')
+        fig.colorbar(mesh, ax=ax, label='sign of growth [-]')
         ax.set_ylabel('mu_s [-]')
     else:
         ax.semilogx(v, g[0], '-')
@@ -132,6 +132,9 @@ def pullout(section):
     r = [x['step_rate'] for x in rows]
     ax.plot(r, [x['pullout_torque'] for x in rows], 'o-', label='pull-out torque')
     ax.plot(r, [x['load_torque'] for x in rows], 's--', label='load line')
+    ax.axvline(section['max_step_rate'], color='k', lw=0.6, ls=':', label='max_step_rate')
+    if section.get('knee'):
+        ax.axvline(section['knee'], color='0.5', lw=0.6, ls='-.', label='knee')
     if section.get('loses_steps_at'):
         ax.axvline(section['loses_steps_at'], color='r', lw=0.8, label='loses steps')
     ax.set_xlabel('step rate [full steps/s]')

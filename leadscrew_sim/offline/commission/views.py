@@ -51,7 +51,9 @@ def twin(ctx, s):
     """Section 3: the held-out parts, measured against twin."""
     b = []
     if s.get('sentence'):
-        b.append(('sentence', s['sentence'] + f' (noise {s["noise_um"]:.3g} um RMS).'))
+        noise = ('no noise level of the nut position known' if s['noise_um'] is None else
+                 f'noise {s["noise_um"]:.3g} um RMS')
+        b.append(('sentence', s['sentence'] + f' ({noise}).'))
         rows = [[part, d['rms_um'], d['max_um'], d.get('rms_over_noise'),
                  d.get('max_over_noise')] for part, d in s['parts'].items()]
         h = s['held_out']
@@ -144,6 +146,9 @@ def stability(ctx, s):
 def stepper(ctx, s):
     """Section 9: pull-out curve and load line."""
     b = [('sentence', s['verdict'] + '.')]
+    if s.get('knee'):
+        b.append(('p', f'The pull-out torque falls below 90 % of its largest from '
+                       f'{s["knee"]:.0f} full steps/s (the knee).'))
     if s.get('lost_steps'):
         b.append(('p', s['lost_steps'] + '.'))
     b.append(('img', plots.pullout(s), 'pull-out curve'))

@@ -7,8 +7,11 @@ from ...pullout import pullout_curve
 from ....core import geometry
 from ....core.friction_law import FrictionLaw
 
-#: Step rates of the curve, as shares of max_step_rate.
-RATES = 14
+#: Step rates of the curve, and how far past max_step_rate it runs (the knee of the motor
+#: and driver may lie beyond the configured top rate).
+RATES, BEYOND = 20, 4.0
+#: The knee: the first rate whose pull-out torque is below this share of the curve's largest.
+KNEE = 0.9
 
 
 def load_torque(p, rate):
@@ -37,18 +40,28 @@ def run(ctx):
     if p.drive_type != 'stepper':
         return None
     section = {'title': 'Stepper', 'cannot': []}
-    rates = list(np.linspace(p.max_step_rate / RATES, p.max_step_rate, RATES))
-    rows = pullout_curve(p, rates)
+    top = BEYOND * p.max_step_rate
+    rates = list(np.linspace(top / RATES, top, RATES))
+    rows = pullout_curve(p.replace(max_step_rate=top), rates)
     loads = [load_torque(p, r) for r in rates]
     section['curve'] = [dict(r, load_torque=lt) for r, lt in zip(rows, loads)]
-    lose = [r['step_rate'] for r, lt in zip(rows, loads) if r['pullout_torque'] <= lt]
+    section['max_step_rate'] = p.max_step_rate
+    peak = max(r['pullout_torque'] for r in rows)
+    knee = [r['step_rate'] for r in rows if r['pullout_torque'] < KNEE * peak]
+    section['knee'] = knee[0] if knee else None
+    if not knee:
+        section['cannot'].append(f'no knee up to {top:g} full steps/s ({BEYOND:g} times '
+                                 'max_step_rate)')
+    lose = [r['step_rate'] for r, lt in zip(rows, loads)
+            if r['pullout_torque'] <= lt and r['step_rate'] <= p.max_step_rate]
     section['loses_steps_at'] = lose[0] if lose else None
     if lose:
         section['margin'] = lose[0] / p.max_step_rate
         section['verdict'] = (f'the load line crosses the pull-out curve at {lose[0]:.0f} full '
                               'steps/s: the axis loses steps from there on')
     else:
-        section['margin'] = min(r['pullout_torque'] / lt for r, lt in zip(rows, loads))
+        section['margin'] = min(r['pullout_torque'] / lt for r, lt in zip(rows, loads)
+                                if r['step_rate'] <= p.max_step_rate)
         section['verdict'] = ('the pull-out torque stays above the load line up to '
                               f'max_step_rate {p.max_step_rate:g} full steps/s (least ratio '
                               f'{section["margin"]:.3g})')

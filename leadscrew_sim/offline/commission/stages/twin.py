@@ -65,6 +65,13 @@ def run(ctx):
         section['cannot'].append('nothing was fitted (no sweep): there is no calibrated twin '
                                  'to judge on held-out data')
         return section
+    if recorded.drive_type == 'stepper' and not recorded.encoder_counts and \
+            not recorded.linear_scale:
+        section['cannot'].append('a stepper without encoder or linear scale reports its '
+                                 'commanded steps as the nut position: the nut is not '
+                                 'measured, so the twin cannot be judged against it')
+        section['parts'], section['drifting'] = {}, {}
+        return section
     if not errs:
         section['cannot'].append('no position-controlled part after the sweep (reversals, '
                                  'iso230): no held-out data whose position the drive holds, so '
@@ -74,6 +81,9 @@ def run(ctx):
                           'included), so its drive loops see the recorded noise; the error is '
                           'the measured reading less the twin\'s true nut position')
     section['held_out'] = _stats(np.concatenate(errs), sigma)
+    if not sigma:
+        section['cannot'].append('the nut position has no noise level here (identify did not '
+                                 'compare it): the error is not given as a multiple of it')
     if section['drifting']:
         section['cannot'].append(
             f'{", ".join(section["drifting"])}: torque- or speed-commanded, the nut position '
