@@ -18,6 +18,7 @@ setup(
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.launch.py'))),
         ('share/' + package_name + '/urdf', sorted(glob('urdf/*.xacro'))),
+        ('share/' + package_name + '/doc/foxglove', sorted(glob('doc/foxglove/*.json'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -54,6 +54,13 @@ def test_presets_installed(install_prefix):
     assert source and installed == source
 
 
+def test_foxglove_layout_installed(install_prefix):
+    """The Foxglove layout the README names is in the install space, byte for byte."""
+    installed = install_prefix / 'share/leadscrew_sim/doc/foxglove/leadscrew_axis.json'
+    assert installed.is_file()
+    assert installed.read_bytes() == (REPO / 'doc/foxglove/leadscrew_axis.json').read_bytes()
+
+
 def test_ament_index_finds_package(install_prefix):
     code = ('from ament_index_python.packages import get_package_share_directory as g;'
             'print(g("leadscrew_sim"))')
