@@ -6,6 +6,7 @@ The verb prints it (unless ``--quiet``) and ``--report`` writes it to a file.
 import numpy as np
 
 from ..analysis.identify.fit import LEVEL
+from ..offline.identify.run import SHIFT
 from ..core.params import ScrewParams
 
 _UNITS = {n: md['unit'] for n, (_t, _d, md) in ScrewParams.field_info().items()}
@@ -65,6 +66,12 @@ def report(path, out):
         lines.append('fitted twice: the first fit did not explain the recording; the second, '
                      'its later scans also from the starting values, '
                      + ('did and replaced it' if out['second'] else 'did not either'))
+    if out.get('shifted') is not None:
+        tries, explained = out['shifted']
+        lines.append(f'fitted from {tries} shifted start{"s" * (tries > 1)} (every fitted '
+                     f'parameter {100 * SHIFT:g} % up, then down): '
+                     + ('the last explained the recording and replaced the fit' if explained
+                        else 'none explained the recording'))
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '
