@@ -57,7 +57,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     rec.require_ros2()
     if rec.record(PARAMS_RECORD) is None:
         raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record (a '
-                       'leadscrew_sim node or simulate recording is needed)')
+                       'leadscrew_sim node or simulate recording is needed; a bag of another '
+                       'stack goes to identify and resim with the mapping flags)')
     commands = command_series(rec)
     st = rec.statistics()
     duration = (st.message_end_time - st.message_start_time) / NS if st and st.message_count \
