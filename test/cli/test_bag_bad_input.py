@@ -141,3 +141,14 @@ def test_a_bad_map_file(good, tmp_path):
                  'nut_joint: axis_nut_joint\ncommand_delay: 0\n')
     r = cli('resim', good, '--preset', 'tr12x3', '--map', m)
     assert r.returncode == 0 and 'command-to-state delay: 0.000 ms (set' in r.stdout, r.stderr
+
+
+def test_commission_refuses_a_bag_of_another_stack_and_names_the_way(good, tmp_path):
+    """No parameter record (no sensor settings, drive mode): one line, no file written."""
+    before = _digest(good)
+    out = tmp_path / 'report'
+    r = cli('commission', good, '-o', out)
+    line = _one_line(r, 'does not map to an axis', 'identify', 'resim')
+    assert str(good) in line
+    assert not out.exists()
+    assert _digest(good) == before
