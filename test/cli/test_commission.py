@@ -209,7 +209,7 @@ def test_held_out_error_at_the_noise_level(commissioned):
 
 def test_the_mixed_run_re_simulates_bit_for_bit(commissioned):
     """
-    simulate's commission run, a topic per part, is what resim makes of its recorded commands.
+    The commission run of simulate, a topic per part, is what resim makes of its recorded commands.
 
     The true nut position of sim/joint_states equals the re-simulation's bit for
     bit: every part's commands passed the node's rules, the breakaway's too.

@@ -230,7 +230,7 @@ SHIFT = 0.1
 
 def _shifted(plan, weights, missed):
     """
-    Fit from the start with every fitted parameter moved by +-SHIFT; return the fit and what was tried.
+    Fit from the start, every fitted parameter moved by +-SHIFT; return the fit and the tries.
 
     ``missed`` is the fit (as :func:`_fit` returns it) that does not explain
     the recording after the second attempt. Each shifted start is fitted as
