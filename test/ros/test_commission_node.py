@@ -76,9 +76,18 @@ def test_commission_over_dds_recovers_the_axis_and_the_restart_reproduces_it(run
     parts = list(report['sections']['axis']['segments'])
     assert parts == ['sweep', 'breakaway', 'reversals', 'chirp']
     fitted = yaml.safe_load((out / 'fit.yaml').read_text())['/**']['ros__parameters']
+    rows = {row['name']: row for row in report['sections']['identify']['parameters']}
     for name, tol in TOLERANCE.items():
+        row = rows[name]
+        if name == 'stribeck_velocity' and row['verdict'] == 'not identified':
+            # its cost valley with mu_s is long (correlation 0.999): on some DDS timings the
+            # bootstrap's refits spread it beyond the verdict's limit; then it is said so and
+            # left out of fit.yaml (the node keeps the preset's), never written as a number
+            assert row['reason'] and name not in fitted, row
+            continue
         assert name in fitted, report['sections']['identify']
         assert abs(fitted[name] - TRUTH[name]) <= tol * TRUTH[name], (name, fitted[name])
+        assert row['lower'] <= TRUTH[name] <= row['upper'], row
     stated = report['sections']['twin']['held_out']['rms_um'] * 1e-6
 
     # The node restarted with fit.yaml runs a new move.
@@ -86,7 +95,9 @@ def test_commission_over_dds_recovers_the_axis_and_the_restart_reproduces_it(run
                    '-p', f'record_dir:={second}', '-p', 'record_prefix:=cm',
                    '-p', 'clock_mode:=stepped', '-p', 'real_time_factor:=1.0',
                    '-p', 'command_timeout:=2.0', *(a for p in SENSORS for a in ('-p', p)))
-    _excite('reversals', '--opt', 'cycles=1', '--opt', 'amplitude=4e-4', '--command-rate', 100)
+    # a new run of the kind of move the report's held-out figure judged (the reversals part,
+    # its default levels): the stated RMS is a figure of that move, not of any move
+    _excite('reversals')
     time.sleep(DRAIN_S)
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
     moved = _one(second)
@@ -100,6 +111,8 @@ def test_commission_over_dds_recovers_the_axis_and_the_restart_reproduces_it(run
     # from the first 0.5 s on, as the report compares (the move starts at rest)
     k0 = int(0.5 / (twin.dt_ns / 1e9))
     e = x_twin[k0:] - x_axis[k0:]
-    assert np.ptp(x_axis) > 7e-4             # it moved: both ways by the amplitude
+    from leadscrew_sim.analysis.excitation.profiles import make_profile
+    amplitude = make_profile('reversals', twin.params).options['amplitude']
+    assert np.ptp(x_axis) > 1.9 * amplitude  # it moved: to both sides by the amplitude
     # within the error the report stated (and 0.1 um for a fit of exact data)
     assert np.sqrt(np.mean(e * e)) <= stated + 1e-7, (np.sqrt(np.mean(e * e)), stated)
