@@ -228,3 +228,36 @@ def test_identify_recovers_the_secret_values_within_its_intervals(bags, tmp_path
     png = tmp_path / 'twin.png'
     cli_ok('plot', bags['forward'], '--params', params, *MAP, '-o', png)
     assert png.read_bytes()[:4] == b'\x89PNG'
+
+
+def test_identify_reads_the_sensors_of_irregular_stamps_from_the_data(bags):
+    """
+    Sensors not given: each level comes from the readings at their own stamps.
+
+    The states come every 2-10 ms with drops, so the plain second difference
+    of successive readings holds the speed times the jitter, and the axis
+    moves in bursts between samples (its loop follows 100 Hz commands). The
+    oracle is the sensors chosen in SENSORS: the noise-free 16-bit encoder
+    read as steps of 2 pi / 65536, the scale's hypot(noise, q / sqrt(12)) =
+    SIGMA_X. The scale's level is a MAD of the quiet windows, a few hundred
+    readings at rest: its relative standard error is near 1.2 / sqrt(200) =
+    8.5 %, and 20 % is about two and a half of those. The fit then holds
+    the truth.
+    """
+    r = cli_ok('identify', bags['forward'], '--preset', 'tr12x3', '--fit', 'mu_s,mu_k', *MAP,
+               '--command-delay', str(-B.LATENCY / B.NS))
+    rows = {m.group(1): (float(m.group(2)), m.group(3)) for m in re.finditer(
+        r'^(screw_angle|nut_position)\s+\S+\s+(\S+)\s+\S+\s+\S+\s+\S+\s+(.*)$',
+        r.stdout, re.M)}
+    assert set(rows) == {'screw_angle', 'nut_position'}, r.stdout
+    step = re.search(r'readings in steps of (\S+): q / sqrt\(12\)', rows['screw_angle'][1])
+    assert step, rows['screw_angle']
+    assert float(step.group(1)) == pytest.approx(2 * math.pi / SENSORS['encoder_counts'],
+                                                 rel=1e-3)
+    sigma, how = rows['nut_position']
+    assert how.startswith('estimated from the data'), how
+    assert 0.8 * SIGMA_X <= sigma <= 1.2 * SIGMA_X, (sigma, SIGMA_X)
+    for name, truth in SECRET.items():
+        m = re.search(rf'^{name}\s+-\s+\S+\s+(\S+)\s+\[(\S+), (\S+)\]\s+(\w+)', r.stdout, re.M)
+        assert m and m.group(4) == 'identified', r.stdout
+        assert float(m.group(2)) <= truth <= float(m.group(3)), (name, m.group(0))

@@ -233,6 +233,12 @@ class ForeignReplay:
             cols[column] = c
         return cols
 
+    def sample_times(self):
+        """Return per step the time of its recorded state [steps from t0] (NaN: none)."""
+        a = np.full(self.n_steps, np.nan)
+        a[self.k] = self.k + 1 + self.frac
+        return a
+
     def measured(self):
         """Return the measured screw angle, nut position and motor torque per step (NaN: none)."""
         out = {}

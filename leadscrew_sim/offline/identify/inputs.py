@@ -69,7 +69,7 @@ def check_geometry(start, recorded):
                            'parameter file of this axis (--preset, --params)')
 
 
-def measurements(path, data, recorded, torque_only, foreign):
+def measurements(path, data, recorded, torque_only, foreign, times=None):
     """
     Return (Measurements, {signal: (noise level, how it is known)}) of a recording.
 
@@ -84,7 +84,9 @@ def measurements(path, data, recorded, torque_only, foreign):
     signal whose noise is below its step (most second differences exactly
     0) is not taken for an exact one. Never below the numerical floor:
     :data:`SIGMA_FLOOR` or :data:`RELATIVE_FLOOR` of the signal's range,
-    whichever is larger (then told as :data:`FLOOR`).
+    whichever is larger (then told as :data:`FLOOR`). ``times``: per step the
+    time of its sample [steps] (NaN: none), for samples off the step grid
+    (a foreign recording's stamps); None: on the grid.
     """
     levels = sensor_levels(recorded)
     if not foreign:         # an ideal sensor of our own recording is known: it reads exactly
@@ -100,7 +102,7 @@ def measurements(path, data, recorded, torque_only, foreign):
         if name in levels:
             s, how = levels[name], source
         else:
-            s, how = data_level(y)
+            s, how = data_level(y, times)
         floor = max(SIGMA_FLOOR[name], RELATIVE_FLOOR * float(np.ptp(y[np.isfinite(y)])))
         if s <= floor:
             s, how = floor, FLOOR
@@ -161,7 +163,7 @@ def sensor_levels(params):
     return out
 
 
-def data_level(y):
+def data_level(y, t=None):
     """
     Return (noise level [unit], how it is known) of a signal whose sensor is not known.
 
@@ -169,9 +171,10 @@ def data_level(y):
     and at least q / sqrt(12) when the readings move in whole steps of q
     (:func:`reading_quantum`): a quantiser whose noise is below its step
     reads the same value for many steps, the median of the second differences
-    is then 0, while each reading is still up to q / 2 off.
+    is then 0, while each reading is still up to q / 2 off. ``t``: the
+    samples' times where they are not equally spaced (None: they are).
     """
-    s, how = ident.noise_estimate(y), ESTIMATED
+    s, how = ident.noise_estimate(y, t), ESTIMATED
     q = reading_quantum(y)
     if q > 0.0 and q / np.sqrt(12.0) > s:
         s, how = q / np.sqrt(12.0), f'{ESTIMATED} (readings in steps of {q:.4g}: q / sqrt(12))'

@@ -71,8 +71,9 @@ class Problem:
             ScrewParams.from_dict(dict(encoder_bias=ident.NULL_BIAS), base=recorded)
             if foreign else recorded)}
         data = src.measured() if foreign else measured_of_resim(src)
-        self.measurements, self.noise = measurements(rec.path, data, recorded,
-                                                     self.torque_only, foreign)
+        self.measurements, self.noise = measurements(
+            rec.path, data, recorded, self.torque_only, foreign,
+            src.sample_times() if foreign else None)
         # exact data: every signal's noise level is the numerical floor (ideal sensors)
         self.exact = all(how == FLOOR for _s, how in self.noise.values())
         self.n = src.n_steps
