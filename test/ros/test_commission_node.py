@@ -86,8 +86,10 @@ def test_commission_over_dds_recovers_the_axis_and_the_restart_reproduces_it(run
             assert row['reason'] and name not in fitted, row
             continue
         assert name in fitted, report['sections']['identify']
+        # (whether the 95 % intervals hold the truth is the simulated tests' question: there
+        # the recording is fixed by its seed, here each run's DDS timing makes a new one, and
+        # a 95 % interval misses in one run of twenty by design)
         assert abs(fitted[name] - TRUTH[name]) <= tol * TRUTH[name], (name, fitted[name])
-        assert row['lower'] <= TRUTH[name] <= row['upper'], row
     stated = report['sections']['twin']['held_out']['rms_um'] * 1e-6
 
     # The node restarted with fit.yaml runs a new move.
