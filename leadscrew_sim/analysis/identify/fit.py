@@ -29,9 +29,10 @@ from ...core.params import ScrewParams
 from . import data as V
 from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
                      SearchOptions, spread)
-from .data import (Coordinate, IDEAL_SENSORS, Measurements, noise_estimate,
+from .data import (Coordinate, IDEAL_SENSORS, Measurements,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                    sensor_sigma, SIGNALS)
+from .noise import noise_estimate
 
 __all__ = ['Coordinate', 'DEFAULT_FIT', 'FitResult', 'FITTABLE', 'IDEAL_SENSORS', 'LEVEL',
            'Measurements', 'NULL_BIAS', 'OFFSET_SIGNALS', 'SIGNALS', 'bounds', 'coordinates',

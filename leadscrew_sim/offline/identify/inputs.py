@@ -167,7 +167,7 @@ def data_level(y, t=None):
     """
     Return (noise level [unit], how it is known) of a signal whose sensor is not known.
 
-    The white noise of its second differences (:func:`..analysis.identify.data.noise_estimate`),
+    The white noise of its second differences (:func:`..analysis.identify.noise.noise_estimate`),
     and at least q / sqrt(12) when the readings move in whole steps of q
     (:func:`reading_quantum`): a quantiser whose noise is below its step
     reads the same value for many steps, the median of the second differences
