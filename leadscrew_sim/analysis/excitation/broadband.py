@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from .base import Builder, nut_speed_limit, Profile, ProfileError, Segment, stroke_room
+from .breakaway import static_breakaway
 from .multisine_design import low_crest_phases, multisine_peak
 from ..freqresp import signals
 
@@ -222,7 +223,6 @@ class _Broadband(Profile):
             return params.initial_position
         if self.kind == 'velocity':
             return 0.0
-        from .profiles import static_breakaway
         t_pos, t_neg = static_breakaway(params)
         lo, hi = min(t_pos, t_neg), max(t_pos, t_neg)
         return 0.0 if lo < 0.0 < hi else 0.5 * (lo + hi)
