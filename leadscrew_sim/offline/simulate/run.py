@@ -8,7 +8,9 @@ node's rule (:data:`leadscrew_sim.core.commands.COMMAND_LOG_TIME`), so
 bit for bit. The robot description and /tf_static come first (at t_0 = 0),
 each tick's /tf after its states (then /clock with ``--clock``).
 :func:`simulate` sets a run up from the options of ``leadscrew_sim
-simulate`` and :func:`simulate_loop` runs it block by block.
+simulate`` and :func:`simulate_loop` runs it block by block: a torque block
+through :mod:`.torque_blocks`, a drive block through :mod:`.drive_inputs`,
+each block's messages written by :mod:`.block_records`.
 """
 import dataclasses
 import math
@@ -19,20 +21,23 @@ import numpy as np
 
 from ..options import (compression_of, gc_paused, load_params, NS, parse_sets, Progress,
                        RunError, simulation_faults)
+from .block_records import record_block
+from .drive_inputs import DriveInput, MixedInput
 from .sources import excite_profile, make_drive_source, make_force_source, make_torque_source
 from ..run_events import EventLog
 from .schedule import CLEAR_FAULT, read_schedule
-from ...core.commands import CommandHold, DROPPED, INITIAL_COMMAND, NutMap
+from .torque_blocks import closed_loop_block, open_loop_block
+from ...core.commands import CommandHold, NutMap
 from ...core.delivery import StateDelivery
 from ...core.drive_modes import FAULT_NONE
 from ...core.fields import public_name
 from ...core.params import ScrewParams
-from ...io import cdr as C, messages as M
 from ...io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, parameters_record,
                             RunWriter, UPDATE_RECORD)
-from ...io.record_fill import Stamps
-from ...io.tick_writer import Events, Stream, write_block
 from ...analysis.excitation.commission import SEGMENTS_RECORD
+
+__all__ = ['BLOCK_TICKS', 'DriveInput', 'MixedInput', 'simulate', 'simulate_loop',
+           'SimulatedRun']
 
 #: Ticks per block: the model runs a block in one compiled call (open-loop
 #: inputs) and the block's messages are encoded and recorded at once.
@@ -191,15 +196,15 @@ def simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w, progress, clock
         elif isinstance(torque_fn, MixedInput):
             torques, cols = torque_fn.block(ks, dt_ns, forces, x)
         elif needs_state:
-            torques, cols = _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm,
-                                               vm_scale)
+            torques, cols = closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm,
+                                              vm_scale)
         else:
-            torques, cols = _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces)
+            torques, cols = open_loop_block(model, hold, ks, dt_ns, torque_fn, forces)
         if log is not None:
             log.add(k0, cols)
         x = float(cols['nut_position'][-1])
         vm = vm_scale * model.output().motor_velocity
-        _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line)
+        record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line)
         stats['x_min'] = min(stats['x_min'], float(np.min(cols['nut_position'])))
         stats['x_max'] = max(stats['x_max'], float(np.max(cols['nut_position'])))
         stats['tq_max'] = max(stats['tq_max'], float(np.max(np.abs(cols['motor_torque']))))
@@ -242,285 +247,3 @@ def _apply_changes(model, hold, line, changes, w, log_time_ns):
     if clear and not model.params.fault_drive_fault and model.clear_fault() != FAULT_NONE:
         w.rec.add_metadata(CLEAR_FAULT_RECORD, {'log_time_ns': str(log_time_ns),
                                                 'messages_at_log_time': '0'})
-
-
-def _check_finite(torques, ks, dt):
-    bad = np.flatnonzero(~np.isfinite(np.asarray(torques, dtype=float)))
-    if len(bad):
-        raise RunError(f'torque input is not finite at t={ks[bad[0]] * dt:.6f} s')
-
-
-def _through_hold(hold, torques, ks, dt_ns, previous):
-    """Return the torques the drive applies: the commands after loss and delay (as resim)."""
-    applied = []
-    for tq, k in zip(torques, ks):
-        hold.torque_command(tq, k * dt_ns)
-        command = hold.delayed(hold.command_at(k * dt_ns))
-        previous = previous if command is None else command[3]
-        applied.append(previous)
-    return applied
-
-
-def _count(hold, torques, ks, dt_ns):
-    """Count commands that need no loss or delay, as received, and hold the last one."""
-    if len(torques):
-        hold.received += len(torques) - 1          # the drop counter counts every command
-        hold.torque_command(torques[-1], ks[-1] * dt_ns)
-
-
-def _open_loop_block(model, hold, ks, dt_ns, torque_fn, forces):
-    """Run a block in one compiled call; return the torques and the run's columns."""
-    dt = dt_ns / NS
-    if hasattr(torque_fn, 'block'):
-        torques = torque_fn.block(np.arange(ks.start, ks.stop, dtype=np.int64) * dt)
-    else:
-        torques = [float(torque_fn(k, k * dt, None, None)) for k in ks]
-    _check_finite(torques, ks, dt)
-    applied = torques
-    if hold.delay or hold.drop_rate:
-        applied = _through_hold(hold, torques, ks, dt_ns, model.held_torque())
-    else:
-        _count(hold, torques, ks, dt_ns)
-    return torques, model.run(applied, forces, drive_values=True)
-
-
-def _closed_loop_block(model, hold, ks, dt_ns, torque_fn, forces, x, vm, vm_scale):
-    """Step tick by tick (the torque depends on the state); return torques and columns."""
-    dt = dt_ns / NS
-    n = len(ks)
-    names = M.SENSOR_COLUMNS[:4] + M.TRUTH_VALUES + M.ANALYSIS_COLUMNS
-    cols = {name: np.empty(n) for name in names}
-    cols['fault'] = np.zeros(n, dtype=np.int8)
-    switches = [np.zeros(n, dtype=bool) for _name in ('limit_min', 'limit_max', 'home')]
-    cols.update(zip(('limit_min', 'limit_max', 'home'), switches))
-    torques = []
-    lossy = hold.delay or hold.drop_rate
-    applied = model.held_torque()
-    for i, k in enumerate(ks):
-        tq = float(torque_fn(k, k * dt, x, vm))
-        _check_finite([tq], [k], dt)
-        torques.append(tq)
-        if lossy:
-            applied = _through_hold(hold, [tq], [k], dt_ns, applied)[0]
-        else:
-            applied = tq
-            _count(hold, [tq], [k], dt_ns)
-        model.advance(applied, None, forces[i])
-        for name, v in zip(names, model.joint_values()[:4] + model.truth_values()
-                           + model.analysis_values()):
-            cols[name][i] = v
-        cols['fault'][i] = model.drive_fault()
-        for flags, on in zip(switches, model.switches()):
-            flags[i] = on == 1.0
-        x, vm = cols['nut_position'][i], vm_scale * cols['motor_velocity'][i]
-    return torques, cols
-
-
-def _record_block(w, ks, dt_ns, torques, forces, changes, cols, clock, line):
-    """Encode and write the messages of one block in the node's per-tick order."""
-    t_cmd = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
-    if isinstance(torques, tuple):            # a drive input: (topic, message rows)
-        cmd = torques[1], w.ids[torques[0]]
-    else:
-        cmd = C.F64_TEMPLATE.rows(None, [np.asarray(torques, dtype=float)]), \
-            w.ids['torque_command']
-    sensed = {name: cols[col] for name, col in zip(M.SENSOR_VALUES, M.SENSOR_COLUMNS)}
-    if line.delay or line.drop_rate or line.pending():   # the node's line, per tick
-        _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line)
-        return
-    enc, ids = w.enc, w.ids
-    t_state = t_cmd + dt_ns
-    stamps = Stamps(t_state)                  # one stamp per tick, on each message
-    states = (enc.encoded('sensor', stamps, sensed) + enc.encoded('truth', stamps, cols)
-              + enc.encoded('analysis', stamps, _analysis(cols)))
-    st_rows = [r for _topic, r in states]
-    st_chans = [ids[topic] for topic, _r in states]
-    if w.tf is not None:
-        st_rows.append(w.tf_rows(stamps, sensed['screw_angle'], sensed['nut_position']))
-        st_chans.append(ids['/tf'])
-    if clock:
-        st_rows.append(enc.clock.rows(t_state, []))
-        st_chans.append(ids['/clock'])
-    write_block(w.rec, _command_pieces(w, cmd, t_cmd, forces, [c - ks.start for c in changes]),
-                st_chans, st_rows, t_state)
-
-
-def _analysis(cols):
-    """Return the analysis values of a block's columns, by message field (floats)."""
-    return {name: np.asarray(cols[col], dtype=float)
-            for name, col in zip(M.ANALYSIS_VALUES, M.ANALYSIS_COLUMNS)}
-
-
-def _command_pieces(w, cmd, t_cmd, forces, changed):
-    """
-    Return the tick_writer pieces of a block's commands: one per tick, forces where they change.
-
-    ``changed``: block indices of the ticks whose force changed (written after
-    their command).
-    """
-    cmd_rows, cmd_chan = cmd
-    pieces, a = [], 0
-    for i in sorted(changed) + [len(t_cmd)]:
-        if i > a:
-            pieces.append(Stream(a, i, cmd_chan, cmd_rows[a:i], t_cmd[a:i]))
-        if i < len(t_cmd):
-            t = int(t_cmd[i])
-            pieces.append(Events(i, [(cmd_chan, cmd_rows[i].tobytes(), t),
-                                     (w.ids['external_force'], C.encode_float64(forces[i]), t)]))
-        a = i + 1
-    return pieces
-
-
-def _record_ticks(w, ks, dt_ns, cmd, forces, changes, sensed, cols, clock, line):
-    """Write a block tick by tick, the sensor states through the node's StateDelivery."""
-    enc, ids = w.enc, w.ids
-    changed = set(changes)
-    sensor_names, truth_names = M.SENSOR_VALUES, M.TRUTH_VALUES
-    analysis = _analysis(cols)
-    for i, k in enumerate(ks):
-        t_cmd, t_state = k * dt_ns, (k + 1) * dt_ns
-        w.write(cmd[1], cmd[0][i].tobytes(), t_cmd)
-        if k in changed:
-            w.write(ids['external_force'], C.encode_float64(forces[i]), t_cmd)
-        line.sample(k + 1, t_state, tuple(float(sensed[n][i]) for n in sensor_names))
-        values = None
-        for stamp, values in line.due(k + 1):
-            for topic, data in enc.sensor(stamp, values):
-                w.write(ids[topic], data, t_state)
-        for topic, data in enc.truth(t_state, tuple(float(cols[n][i]) for n in truth_names)):
-            w.write(ids[topic], data, t_state)
-        for topic, data in enc.analysis(t_state, tuple(float(analysis[n][i])
-                                                       for n in M.ANALYSIS_VALUES)):
-            w.write(ids[topic], data, t_state)
-        if values is not None:
-            w.write_tf(stamp, values[0], values[1], t_state)
-        if clock:
-            w.write(ids['/clock'], enc.clock(t_state, ()), t_state)
-
-
-class DriveInput:
-    """
-    A velocity or position input through the drive, run block-wise in one compiled call.
-
-    Each tick's command goes through :class:`CommandHold`, the rules the node
-    and ``resim`` apply to the recorded message, so all three hand the model
-    the same doubles; the messages are recorded on ``topic``.
-    """
-
-    def __init__(self, fn, topic, model, prefix):
-        """Keep the source ``fn(t) -> (x, v)``, the command topic and the model."""
-        self.fn, self.topic, self.model = fn, topic, model
-        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model), params=model.params)
-        self.joint = prefix + 'nut_joint'
-        self.template = C.joint_state_template([self.joint], 1, 1, 0)
-        self.previous = INITIAL_COMMAND     # the command the drive holds (delayed commands)
-
-    def block(self, ks, dt_ns, forces):
-        """Run ticks ``ks``; return ((topic, message rows), the run's columns)."""
-        t_ns = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
-        if hasattr(self.fn, 'block'):
-            xs, vs = self.fn.block(t_ns / NS)
-        else:
-            xs, vs = np.empty(len(ks)), np.empty(len(ks))
-            for i, t in enumerate(t_ns.tolist()):
-                xs[i], vs[i] = self.fn(t / NS)
-        commands = None
-        if self.topic != 'joint_commands':
-            commands = self.hold.take_series(
-                self.topic, vs if self.topic == 'velocity_command' else xs, t_ns)
-        if commands is None:
-            commands = self._one_by_one(t_ns, xs, vs)
-        self.previous = tuple(commands[-1])
-        r = self.model.run(None, forces, commands=commands)
-        t_cmd = t_ns
-        if self.topic == 'joint_commands':
-            rows = self.template.rows(t_cmd, [xs, vs])
-        else:
-            rows = C.F64_TEMPLATE.rows(None, [vs if self.topic == 'velocity_command' else xs])
-        return (self.topic, rows), r
-
-    def _one_by_one(self, t_ns, xs, vs):
-        """Return the drive commands of the ticks at ``t_ns``, each through CommandHold."""
-        commands = np.empty((len(t_ns), 4))
-        hold, previous = self.hold, self.previous
-        for i, t in enumerate(t_ns.tolist()):
-            if self.topic == 'velocity_command':
-                reason = hold.velocity_command(float(vs[i]), t)
-            elif self.topic == 'position_command':
-                reason = hold.position_command(float(xs[i]), t)
-            else:
-                reason = hold.joint_commands([self.joint], [xs[i]], [vs[i]], [], t)[1]
-            if reason and reason is not DROPPED:
-                raise RunError(f'drive input at t={t / NS:.6f} s: {reason}')
-            command = hold.delayed(hold.command_at(t))
-            previous = previous if command is None else command
-            commands[i] = previous
-        return commands
-
-
-class MixedInput:
-    """
-    The commission profile: each part on its own command topic, all through one CommandHold.
-
-    A velocity or position part runs block-wise as :class:`DriveInput`; the
-    breakaway part (torque) tick by tick, its controller reading the nut
-    position. Blocks are cut at the parts' first ticks (:meth:`cuts`), so
-    each block's commands go on one topic.
-    """
-
-    def __init__(self, profile, model, prefix):
-        """Keep the profile, its controller and the model."""
-        self.profile, self.model = profile, model
-        self.hold = CommandHold(prefix, 0.0, NutMap.of_model(model), params=model.params)
-        self.ctl = profile.controller()
-        self.previous = INITIAL_COMMAND
-
-    def cuts(self, dt_ns, n_steps):
-        """Return the first tick of every part after the first (within the run)."""
-        out = []
-        for _name, t0, _part in self.profile.parts[1:]:
-            k = int(math.ceil(t0 * NS / dt_ns - 1e-6))
-            if 0 < k < n_steps:
-                out.append(k)
-        return out
-
-    def block(self, ks, dt_ns, forces, x):
-        """Run ticks ``ks`` of one part; return the commands (as recorded) and the columns."""
-        t_ns = np.arange(ks.start, ks.stop, dtype=np.int64) * dt_ns
-        ts = t_ns / NS
-        _name, t0, part = self.profile.part_at(float(ts[0]))
-        if part.kind == 'torque':
-            return self._torque_ticks(t_ns, forces, x)
-        values = part.values(ts - t0)
-        commands = self.hold.take_series(part.topic, values, t_ns)
-        if commands is None:
-            commands = self._one_by_one(part.topic, values, t_ns)
-        self.previous = tuple(commands[-1])
-        cols = self.model.run(None, forces, commands=commands)
-        return (part.topic, C.F64_TEMPLATE.rows(None, [values])), cols
-
-    def _take(self, topic, value, t):
-        """Give one command to the hold; return the drive command in force at ``t`` [ns]."""
-        take = getattr(self.hold, topic)
-        reason = take(value, t)
-        if reason and reason is not DROPPED:
-            raise RunError(f'commission input at t={t / NS:.6f} s: {reason}')
-        command = self.hold.delayed(self.hold.command_at(t))
-        self.previous = self.previous if command is None else tuple(command)
-        return self.previous
-
-    def _one_by_one(self, topic, values, t_ns):
-        """Return the drive commands of the ticks at ``t_ns``, each through CommandHold."""
-        return np.array([self._take(topic, float(v), t) for v, t in zip(values, t_ns.tolist())])
-
-    def _torque_ticks(self, t_ns, forces, x):
-        """Step the torque part tick by tick (its controller reads the nut position x [m])."""
-        torques, parts = [], []
-        for i, t in enumerate(t_ns.tolist()):
-            tq = float(self.ctl(t / NS, x))
-            torques.append(tq)
-            row = self._take('torque_command', tq, t)
-            r = self.model.run(None, forces[i:i + 1], commands=[row])
-            parts.append(r)
-            x = float(r['nut_position'][-1])
-        return torques, {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
