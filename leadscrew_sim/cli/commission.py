@@ -3,12 +3,17 @@
 
 ``leadscrew_sim commission RUN -o DIR`` writes DIR/fit.yaml (the identified
 values as a parameter file), DIR/report.json (every figure) and
-DIR/report.html (one self-contained page). The run library is
+DIR/report.html (one self-contained page). RUN is a leadscrew_sim recording,
+or a real axis's bag (a rosbag2 directory or ros2 MCAP file) mapped by the
+options of ``identify`` (``--command-topic``, the joints, ``--map``) with
+its parts in a segments sidecar. The run library is
 :mod:`leadscrew_sim.offline.commission.run`; the fit takes the options of
 ``identify`` (starting values) that this verb passes on.
 """
 import importlib
 
+from .args import add_mapping_arguments
+from ..offline.foreign.mapping import Mapping
 from ..offline.commission.run import commission
 from ..offline.options import keep_freed_memory
 
@@ -17,7 +22,9 @@ HELP = 'commission an axis from one recording: fit.yaml, report.json and report.
 
 def add_arguments(p):
     """Add the options of ``commission`` to parser ``p``."""
-    p.add_argument('run', metavar='RUN', help='the recording (MCAP) of `excite commission`')
+    p.add_argument('run', metavar='RUN', help='the recording of `excite commission`: a '
+                   'leadscrew_sim MCAP file, or a real axis\'s rosbag2 bag with the mapping '
+                   'options')
     p.add_argument('-o', '--output', required=True, metavar='DIR',
                    help='directory of fit.yaml, report.json and report.html (created)')
     p.add_argument('--segments', metavar='FILE.json',
@@ -30,6 +37,7 @@ def add_arguments(p):
                    help='a starting or fixed value (repeatable; YAML scalar in the '
                    'parameter\'s unit)')
     p.add_argument('-q', '--quiet', action='store_true', help='no progress lines on stderr')
+    add_mapping_arguments(p)
 
 
 def run(args):
@@ -43,6 +51,9 @@ def run(args):
     for item in args.set or []:
         argv += ['--set', item]
     identify_args = main.build_parser().parse_args(argv)
+    identify_args.map = args.map
+    for key in Mapping.keys():
+        setattr(identify_args, 'rate' if key == 'step_rate' else key, getattr(args, key))
     commission(args.run, args.output, identify_args, args.segments,
                progress=(lambda line: None) if args.quiet else _say)
     return 0

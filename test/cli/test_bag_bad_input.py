@@ -54,13 +54,15 @@ def good(tmp_path_factory):
     return _bag(tmp_path_factory.mktemp('good') / 'bag')
 
 
-@pytest.mark.parametrize('verb', ['resim', 'identify', 'plot'])
-def test_a_topic_not_there_lists_the_known_ones(good, verb):
+@pytest.mark.parametrize('verb', ['resim', 'identify', 'plot', 'commission'])
+def test_a_topic_not_there_lists_the_known_ones(good, verb, tmp_path):
     before = _digest(good)
     args = [a if a != B.FORWARD else '/nope/commands' for a in MAP]
-    _one_line(cli(verb, good, *args), '--command-topic /nope/commands', 'no such topic',
+    out = ['-o', str(tmp_path / 'report')] if verb == 'commission' else []
+    _one_line(cli(verb, good, *args, *out), '--command-topic /nope/commands', 'no such topic',
               B.FORWARD, B.STATES)
     assert _digest(good) == before
+    assert not (tmp_path / 'report').exists()
 
 
 def test_a_joint_missing_from_the_states(good):
@@ -143,12 +145,12 @@ def test_a_bad_map_file(good, tmp_path):
     assert r.returncode == 0 and 'command-to-state delay: 0.000 ms (set' in r.stdout, r.stderr
 
 
-def test_commission_refuses_a_bag_of_another_stack_and_names_the_way(good, tmp_path):
-    """No parameter record (no sensor settings, drive mode): one line, no file written."""
+def test_commission_of_a_bag_without_its_mapping_names_the_way(good, tmp_path):
+    """No parameter record and no mapping flags: one line naming them and info, no file."""
     before = _digest(good)
     out = tmp_path / 'report'
     r = cli('commission', good, '-o', out)
-    line = _one_line(r, 'does not map to an axis', 'identify', 'resim')
+    line = _one_line(r, 'does not map to an axis', '--command-topic', 'leadscrew_sim info')
     assert str(good) in line
     assert not out.exists()
     assert _digest(good) == before

@@ -98,27 +98,18 @@ def test_progress_per_stage_and_the_segments(commissioned):
         assert seg[n] == pytest.approx([a, b], abs=1e-9)
 
 
-def test_friction_figures_against_the_closed_forms(commissioned):
+def efficiency_closed_forms(truth, v):
     """
-    Efficiencies and breakaway torques against the axis's closed forms of the truth.
+    Return (forward, back-driving) efficiency of the truth's axis at nut speed ``v`` [m/s].
 
-    At the fastest level (nut speed v, motor rate w = 2 pi v / l): the motor
-    torque of steady sliding is the thread's, W' r (mu' + tan l) / (1 - mu'
-    tan l) raising and W' r (mu' - tan l) / (1 + mu' tan l) lowering, with
-    W' the load less the guide's viscous force c |v| against the motion and
-    mu' the truth's law at the sliding speed, plus the bearing's viscous
-    torque b w. The efficiencies are the load power over the motor power
-    (W r tan l / T and -T / (W r tan l)): within 3 % (the level's mean speed
-    carries the scale's noise). The breakaway torques: at least the static
-    closed form (stiction holds until it is passed), at most 5 % above it
-    (the ramp runs on while the nut moves the 5 sigma the detection needs).
+    The motor torque of steady sliding is the thread's, W' r (mu' + tan l) /
+    (1 - mu' tan l) raising and W' r (mu' - tan l) / (1 + mu' tan l)
+    lowering, with W' the load less the guide's viscous force c |v| against
+    the motion and mu' the truth's law at the sliding speed, plus the
+    bearing's viscous torque b w (w = 2 pi v / l). The efficiencies are the
+    load power over the motor power: W r tan l / T and -T / (W r tan l).
     """
-    _rec, _out, report, _err, _wall = commissioned
-    from leadscrew_sim.analysis.excitation.profiles import static_breakaway
-    truth = load_preset('tr12x3', **_truth())
-    f = report['sections']['friction']
     lam, r = truth.lead_angle, truth.r_m
-    v = f['efficiency_thread']['speed']
     omega = 2 * math.pi * v / truth.lead
     vs = v / math.sin(lam)
     mu = truth.thread_factor * (truth.mu_k + (truth.mu_s - truth.mu_k) * math.exp(
@@ -130,9 +121,26 @@ def test_friction_figures_against_the_closed_forms(commissioned):
         truth.bearing_viscous * omega
     down_torque = (w - truth.guide_viscous * v) * r * (mu - t) / (1 + mu * t) + \
         truth.bearing_viscous * omega
-    assert f['efficiency_measured']['forward'] == pytest.approx(w * r * t / up_torque, rel=0.03)
-    assert f['efficiency_measured']['backdrive'] == pytest.approx(-down_torque / (w * r * t),
-                                                                  rel=0.03)
+    return w * r * t / up_torque, -down_torque / (w * r * t)
+
+
+def test_friction_figures_against_the_closed_forms(commissioned):
+    """
+    Efficiencies and breakaway torques against the axis's closed forms of the truth.
+
+    At the fastest level the efficiencies (:func:`efficiency_closed_forms`)
+    within 3 % (the level's mean speed carries the scale's noise). The
+    breakaway torques: at least the static closed form (stiction holds until
+    it is passed), at most 5 % above it (the ramp runs on while the nut moves
+    the 5 sigma the detection needs).
+    """
+    _rec, _out, report, _err, _wall = commissioned
+    from leadscrew_sim.analysis.excitation.profiles import static_breakaway
+    truth = load_preset('tr12x3', **_truth())
+    f = report['sections']['friction']
+    fwd, back = efficiency_closed_forms(truth, f['efficiency_thread']['speed'])
+    assert f['efficiency_measured']['forward'] == pytest.approx(fwd, rel=0.03)
+    assert f['efficiency_measured']['backdrive'] == pytest.approx(back, rel=0.03)
     up, down = static_breakaway(truth)
     assert up <= f['breakaway']['+'] <= up * 1.05
     assert down * 1.05 <= f['breakaway']['-'] <= down

@@ -52,7 +52,9 @@ class Context:
     of ``identify`` (mapping flags), ``calibrated`` the ScrewParams after the
     fit, ``fit`` what :func:`fit_recording` returned (None: no fit),
     ``noise`` {signal: sigma} of the fit, ``twin`` the calibrated
-    re-simulation's columns (or None).
+    re-simulation's columns (or None), ``rate`` the step rate [Hz], ``axis``
+    where the pieces came from (:mod:`.sources`: the recording's own or a
+    mapped real axis).
     """
 
     path: str
@@ -71,6 +73,7 @@ class Context:
     twin_time: np.ndarray = None
     fitted_on: list = dataclasses.field(default_factory=list)
     rate: float = 1000.0
+    axis: object = None
 
     def held(self, kind, t):
         """Return the command of ``kind`` in force at the times ``t`` [s] (NaN before any)."""

@@ -14,14 +14,16 @@ import sys
 import tempfile
 import time
 
-from .context import Context, Measured
-from .segments import check_span, command_series, find_segments, missing
+from .context import Context
+from .segments import check_span, find_segments, missing
+from .sources import open_axis
+from ..foreign.mapping import Mapping
 from .stages import backlash, fit, friction, iso230, response, stability, stepper, twin
 from . import html, views
 from ..identify.inputs import start_params
 from ..identify.output import params_document, write_text
 from ..options import NS, open_recording, RunError
-from ...io.run_file import PARAMS_RECORD, run_setting
+from ...io.run_file import PARAMS_RECORD
 
 #: (name, function) of the stages in their order.
 STAGES = (('identify', fit.run), ('twin', twin.run), ('friction', friction.run),
@@ -40,7 +42,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     Parameters
     ----------
     path : str
-        The recording (a leadscrew_sim MCAP file).
+        The recording: a leadscrew_sim MCAP file, or a real axis's rosbag2 bag
+        (or ros2 MCAP file) with the mapping options in ``identify_args``.
     out_dir : str
         Where fit.yaml, report.json and report.html go (created).
     identify_args : argparse.Namespace
@@ -55,11 +58,14 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     t_all = time.perf_counter()
     rec = open_recording(path)
     rec.require_ros2()
-    if rec.record(PARAMS_RECORD) is None:
-        raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record (a '
-                       'leadscrew_sim node or simulate recording is needed; a bag of another '
-                       'stack goes to identify and resim with the mapping flags)')
-    commands = command_series(rec)
+    if rec.record(PARAMS_RECORD) is None and not Mapping.from_args(identify_args).given:
+        raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record and no '
+                       'mapping (a bag of another stack needs --command-topic and the joints, '
+                       f'or --map FILE.yaml; `leadscrew_sim info {path}` prints the flags '
+                       'that fit it)')
+    start, label = start_params(identify_args, rec)
+    axis = open_axis(rec, identify_args, start)
+    commands = axis.commands
     st = rec.statistics()
     duration = (st.message_end_time - st.message_start_time) / NS if st and st.message_count \
         else 0.0
@@ -68,8 +74,6 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
         raise RunError(f'{path}: no commission part found in its commands ({duration:.3g} s); '
                        'record `leadscrew_sim excite commission`')
     check_span(windows, duration)
-    start, label = start_params(identify_args, rec)
-    meta = rec.record(PARAMS_RECORD)
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
@@ -77,10 +81,10 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     timings = {}
     with tempfile.TemporaryDirectory(prefix='commission_') as work:
         ctx = Context(path=str(path), rec=rec, windows=windows, commands=commands,
-                      measured=Measured.of(rec), start=start, label=label, work=work,
-                      identify_args=identify_args, calibrated=start)
-        ctx.rate = float(run_setting(meta, 'update_rate', 1000.0))
-        sections = {'axis': _axis(ctx, duration, source)}
+                      measured=axis.measured, start=start, label=label, work=work,
+                      identify_args=identify_args, calibrated=start, axis=axis)
+        ctx.rate = axis.rate
+        sections = {}
         for i, (name, fn) in enumerate(STAGES):
             t0 = time.perf_counter()
             progress(f'commission: [{i + 1}/{len(STAGES)}] {name} ...')
@@ -88,6 +92,7 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
             timings[name] = time.perf_counter() - t0
             progress(f'commission: [{i + 1}/{len(STAGES)}] {name} done in '
                      f'{timings[name]:.2f} s')
+    sections = {'axis': _axis(ctx, duration, source), **sections}
     sections['undetermined'] = _undetermined(sections)
     report = {'format': 'leadscrew_sim.commission/1', 'recording': str(path),
               'sections': _clean(sections), 'timings_s': timings,
@@ -105,31 +110,25 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
 
 
 def _axis(ctx, duration, source):
-    p = ctx.rec.record(PARAMS_RECORD) or {}
     s = ctx.start
-    sensors = {'encoder_counts': _recorded(p, 'encoder_counts', s.encoder_counts),
-               'encoder_noise_rad': _recorded(p, 'encoder_noise', s.encoder_noise),
-               'linear_scale': _recorded(p, 'linear_scale', s.linear_scale),
-               'scale_resolution_m': _recorded(p, 'scale_resolution', s.scale_resolution),
-               'scale_noise_m': _recorded(p, 'scale_noise', s.scale_noise)}
-    return {'title': 'The axis and the recording', 'preset': ctx.label,
-            'drive_type': s.drive_type, 'sensors': sensors, 'duration_s': duration,
-            'segments': {n: list(w) for n, w in ctx.windows.items()},
-            'segments_source': source,
-            'missing': [{'part': n, 'would_add': w} for n, w in missing(ctx.windows)
-                        if not (n == 'breakaway' and s.drive_type == 'stepper')],
-            'cannot': []}
-
-
-def _recorded(meta, name, default):
-    """Return the recorded sensor setting (the user knows their sensors), else ``default``."""
-    v = meta.get(name)
-    if v is None:
-        return default
-    try:
-        return json.loads(v) if v in ('true', 'false') else float(v)
-    except ValueError:
-        return v
+    sensors, sensors_from = ctx.axis.sensors(s, ctx.fit)
+    out = {'title': 'The axis and the recording', 'preset': ctx.label,
+           'drive_type': s.drive_type, 'sensors': sensors, 'sensors_from': sensors_from,
+           'duration_s': duration, 'segments': {n: list(w) for n, w in ctx.windows.items()},
+           'segments_source': source,
+           'missing': [{'part': n, 'would_add': w} for n, w in missing(ctx.windows)
+                       if not (n == 'breakaway' and s.drive_type == 'stepper')],
+           'cannot': []}
+    if ctx.axis.foreign:
+        rep = ctx.axis.replay
+        out['mapping'] = {'state_topic': rep.state_topic, 'command_topic': rep.command_topic,
+                          'command_type': rep.commands.ctype, 'joints': list(rep.joints),
+                          'step_rate_hz': ctx.rate, 'command_delay_s': rep.delay.value}
+        if ctx.axis.nut_from_screw:
+            out['cannot'].append('the states carry no nut joint: the nut position is the '
+                                 'screw angle through the lead (backlash and the flanks do '
+                                 'not show in it)')
+    return out
 
 
 def _undetermined(sections):

@@ -18,8 +18,17 @@ def axis(ctx, s):
     b = [('p', f'Preset {s["preset"]} ({s["drive_type"]} drive), {s["duration_s"]:.2f} s '
                f'recorded; the segments come from {s["segments_source"]}.'),
          ('table', ['sensor setting', 'value'], [[k, v] for k, v in s['sensors'].items()]),
+         ('p', f'The sensor settings: {s.get("sensors_from", "")}.'),
          ('table', ['segment', 'start [s]', 'end [s]'],
           [[n, a, e] for n, (a, e) in s['segments'].items()])]
+    if s.get('mapping'):
+        mp = s['mapping']
+        b.insert(1, ('table', ['mapping of the real axis\'s recording', 'value'], [
+            ['states (sensor_msgs/JointState)', mp['state_topic']],
+            [f'commands ({mp["command_type"]})', mp['command_topic']],
+            ['screw joint, nut joint', ', '.join(mp['joints'])],
+            ['re-simulation step rate [Hz]', mp['step_rate_hz']],
+            ['command-to-state delay [s]', mp['command_delay_s']]]))
     if s['missing']:
         b.append(('table', ['missing segment', 'what it would add'],
                   [[m['part'], m['would_add']] for m in s['missing']]))
@@ -53,7 +62,9 @@ def twin(ctx, s):
     if s.get('sentence'):
         noise = ('no noise level of the nut position known' if s['noise_um'] is None else
                  f'noise {s["noise_um"]:.3g} um RMS')
-        b.append(('sentence', s['sentence'] + f' ({noise}).'))
+        b.append(('sentence', s['sentence'] + '.'))
+        b.append(('p', f'The nut position\'s reading: {noise}.' + (
+            ' ' + s['floor'][0].upper() + s['floor'][1:] + '.' if s.get('floor') else '')))
         rows = [[part, d['rms_um'], d['max_um'], d.get('rms_over_noise'),
                  d.get('max_over_noise')] for part, d in s['parts'].items()]
         h = s['held_out']

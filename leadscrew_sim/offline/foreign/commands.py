@@ -48,7 +48,8 @@ class Commands:
     skipped : int
         Commands not taken: non-finite values (as the node rejects them).
     role : str
-        ``screw`` or ``nut``: the joint a JointState or trajectory command moves.
+        ``screw`` or ``nut``: the joint a JointState or trajectory command moves
+        (of the first command; ``roles`` has each JointState command's).
 
     """
 
@@ -121,13 +122,29 @@ class Commands:
         return name, 'nut' if name == nut else 'screw'
 
     def _joint_states(self, datas, times, mapping, joints):
+        """
+        Keep each message's (position, velocity, effort) of its mapped joint.
+
+        With ``--command-joint`` only that joint's values are taken; without,
+        each message's own joint: the nut joint where it names it, else the
+        screw joint (the node takes a torque on the screw joint and a nut
+        position or velocity on the nut joint, one joint per message).
+        """
         self.kind = 'joint'
-        name = None
-        items, kept = [], []
+        items, kept, roles = [], [], []
+        screw, nut = joints
         for t, d in zip(times, datas):
             _s, names, pos, vel, eff = C.decode_joint_state(bytes(d))
-            if name is None:
-                name, self.role = self._joint(names, mapping, joints)
+            if mapping.command_joint is not None or self.role is None:
+                name, role = self._joint(names, mapping, joints)
+            elif nut in names:
+                name, role = nut, 'nut'
+            elif screw in names:
+                name, role = screw, 'screw'
+            else:
+                name, role = None, None
+            if self.role is None:
+                self.role = role
             if name not in names:
                 self.skipped += 1
                 continue
@@ -138,8 +155,10 @@ class Commands:
                 continue
             items.append(vals)
             kept.append(t)
+            roles.append(role)
         self.times = np.array(kept, dtype=np.int64)
         self.values = np.array(items, dtype=float).reshape(-1, 3)
+        self.roles = roles
 
     def _trajectories(self, datas, times, mapping, joints):
         self.kind = 'trajectory'
@@ -163,6 +182,42 @@ class Commands:
                                       not stamp))
             kept.append(t)
         self.times = np.array(kept, dtype=np.int64)
+
+    def by_kind(self, nut_map, delay_ns=0):
+        """
+        Return {kind: (times [ns], values)} of the commands as the node takes them.
+
+        Kinds ``torque`` [N m], ``velocity`` [m/s of the nut] and ``position``
+        [m of the nut]: a JointState command is the position where it gives
+        one, else the velocity, else the effort (the node's mode rule), its
+        screw values mapped onto the nut by ``nut_map`` (a nut effort [N] onto
+        the motor torque); a trajectory's points at their times. ``delay_ns``
+        moves the receipt times as the re-simulation does.
+        """
+        out = {k: ([], []) for k in ('torque', 'velocity', 'position')}
+        if self.kind == 'scalar':
+            out[self.command_kind] = (list(self.times + delay_ns), list(self.values))
+        elif self.kind == 'joint':
+            for t, (p, v, e), role in zip(self.times, self.values, self.roles):
+                nut = role == 'nut'
+                if p == p:
+                    kind, x = 'position', p if nut else nut_map.x0 + (p - nut_map.theta0) / \
+                        nut_map.k
+                elif v == v:
+                    kind, x = 'velocity', v if nut else v / nut_map.k
+                else:
+                    kind, x = 'torque', nut_map.effort(e) if nut else e
+                out[kind][0].append(int(t) + delay_ns)
+                out[kind][1].append(float(x))
+        else:
+            for i, (at, pos, _vel, relative) in enumerate(self.trajectories):
+                at = at + (int(self.times[i]) + delay_ns if relative else 0)
+                x = pos if self.role == 'nut' else nut_map.x0 + (pos - nut_map.theta0) / \
+                    nut_map.k
+                out['position'][0].extend(int(a) for a in at)
+                out['position'][1].extend(float(v) for v in x)
+        return {k: (np.array(ts, dtype=np.int64), np.array(vs, dtype=float))
+                for k, (ts, vs) in out.items()}
 
     def rate(self):
         """Return the median command rate [Hz] (0 for a single command)."""
@@ -201,9 +256,9 @@ class Commands:
                                 for v, t in zip(self.values, self.times)]).reshape(-1, 4)
             return _held(rows, ks, cmd)
         if self.kind == 'joint':
-            label = 'nut_joint' if self.role == 'nut' else 'screw_joint'
             cmd = np.empty((len(self.times), 4))
-            for i, (t, (p, v, e)) in enumerate(zip(self.times, self.values)):
+            for i, (t, (p, v, e), role) in enumerate(zip(self.times, self.values, self.roles)):
+                label = 'nut_joint' if role == 'nut' else 'screw_joint'
                 hold.joint_commands([label], [p], [v], [e], int(t))
                 cmd[i] = hold.command_at(int(t))
             return _held(rows, ks, cmd)

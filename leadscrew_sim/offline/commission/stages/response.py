@@ -33,8 +33,8 @@ def run(ctx):
         a, b = ctx.windows['chirp']
         path = os.path.join(ctx.work, 'chirp_window.mcap')
         write_window(ctx.rec, path, b, a)
-        meas = recording_response(path, RecordingOptions(input='velocity_command',
-                                                         output='motor_velocity'))
+        meas = recording_response(path, RecordingOptions(
+            input='velocity_command', output='motor_velocity', **ctx.axis.response_options))
         ok = meas.coherence >= 0.9
         section['measured'] = {'frequency': meas.frequency.tolist(),
                                'magnitude_db': meas.magnitude_db.tolist(),

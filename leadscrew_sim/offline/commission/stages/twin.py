@@ -1,9 +1,6 @@
 """Stage 'twin': the calibrated stand-in re-simulating the recording, judged on held-out parts."""
 import numpy as np
 
-from ...replay.resim import Resim
-from ....io.run_file import PARAMS_RECORD, params_from_record
-from ....core.params import ScrewParams
 
 #: Parts the fit did not see whose nut position the drive controls, compared in this order.
 #: The breakaway is torque-driven: its nut position integrates any torque difference (the
@@ -16,32 +13,15 @@ DRIFTING = ('breakaway', 'chirp')
 #: the part before (a torque- or speed-driven one), and the position loop pulls both onto
 #: the first target within it.
 SETTLE = 0.5
-#: The sensor settings the twin takes from the recording (the axis's own sensors).
-SENSORS = ('encoder_counts', 'encoder_noise', 'encoder_bias', 'scale_resolution',
-           'scale_noise', 'scale_bias', 'sensor_seed', 'linear_scale')
-
-
-def calibrated_overrides(params, recorded):
-    """
-    Return every physics value of the calibrated ``params``, the sensors as ``recorded``.
-
-    The drive's loops act on the sensor readings: the twin reads the axis's
-    sensors with their recorded settings (their noise seed too), so the
-    loops see the same noise as on the recording.
-    """
-    values = {n: getattr(params, n) for n in ScrewParams.names() if not n.startswith('fault_')}
-    values.update({n: getattr(recorded, n) for n in SENSORS if hasattr(recorded, n)})
-    return values
+#: The sensor settings whose noise is drawn from the sensor seed.
+NOISY = ('encoder_noise', 'scale_noise')
 
 
 def run(ctx):
     """Re-simulate the whole recording with the calibrated set; return the held-out section."""
     section = {'title': 'The twin against the recording', 'parts': {}, 'cannot': []}
-    recorded, _missing = params_from_record(ctx.rec.record(PARAMS_RECORD))
-    sim = Resim(ctx.rec, calibrated_overrides(ctx.calibrated, recorded))
-    cols = sim.replay()
+    cols, ctx.twin_time = ctx.axis.resimulate(ctx.calibrated, ctx.fit)
     ctx.twin = cols
-    ctx.twin_time = (sim.t0 + (np.arange(len(cols['nut_position'])) + 1) * sim.dt_ns) / 1e9
     held = [p for p in HELD_OUT if p in ctx.windows] if ctx.fit else []
     sigma = ctx.noise.get('nut_position')
     section['noise_um'] = None if sigma is None else sigma * 1e6
@@ -65,8 +45,7 @@ def run(ctx):
         section['cannot'].append('nothing was fitted (no sweep): there is no calibrated twin '
                                  'to judge on held-out data')
         return section
-    if recorded.drive_type == 'stepper' and not recorded.encoder_counts and \
-            not recorded.linear_scale:
+    if ctx.axis.stepper_unmeasured():
         section['cannot'].append('a stepper without encoder or linear scale reports its '
                                  'commanded steps as the nut position: the nut is not '
                                  'measured, so the twin cannot be judged against it')
@@ -79,7 +58,12 @@ def run(ctx):
         return section
     section['sensors'] = ('the twin reads the recorded sensor settings (noise seed '
                           'included), so its drive loops see the recorded noise; the error is '
-                          'the measured reading less the twin\'s true nut position')
+                          'the measured reading less the twin\'s true nut position'
+                          if not ctx.axis.foreign else
+                          'the twin reads sensors of the noise and resolution identify found '
+                          '(their noise is not the axis\'s own draw), so its drive loops see '
+                          'noise like the recorded; the error is the measured reading less '
+                          'the twin\'s true nut position')
     section['held_out'] = _stats(np.concatenate(errs), sigma)
     if not sigma:
         section['cannot'].append('the nut position has no noise level here (identify did not '
@@ -90,10 +74,47 @@ def run(ctx):
             'there integrates every difference of friction, so its error says how far the '
             'position drifts, not how well the twin reproduces the axis')
     section['held_out_parts'] = held
-    rms = section['held_out']['rms_um']
+    h = section['held_out']
+    rms = h['rms_um']
     section['sentence'] = (f'the stand-in reproduces this axis to {rms:.3g} um RMS on data it '
                            'was not fitted to')
+    spread = draw_spread(ctx, held)
+    if spread is not None:
+        floor = float(np.hypot(spread, sigma or 0.0))
+        h.update(draw_spread_um=spread * 1e6, floor_um=floor * 1e6,
+                 rms_over_floor=rms * 1e-6 / floor if floor > 0 else None)
+        section['floor'] = ('the drive closes its loops over noisy sensors, so where the '
+                            'thread sticks and slips at each target depends on the noise '
+                            'drawn: two twins that differ in their sensor noise alone differ '
+                            f'by {spread * 1e6:.3g} um RMS on these parts; with the reading\'s '
+                            f'own noise that is a floor of {floor * 1e6:.3g} um, which no twin '
+                            'can beat on a recording of other noise')
+        section['sentence'] += (f' ({rms * 1e-6 / floor:.3g} times the closed loop\'s noise '
+                                f'floor of {floor * 1e6:.3g} um)')
     return section
+
+
+def draw_spread(ctx, held):
+    """
+    Return the RMS difference [m] of two twins differing in their noise draw, on ``held``.
+
+    The calibrated set re-simulated with two other sensor seeds; None when
+    the twin's sensors have no noise (nothing is drawn).
+    """
+    values = ctx.axis.twin_values(ctx.calibrated, ctx.fit)
+    if not any(values.get(n) for n in NOISY):
+        return None
+    seed = int(values.get('sensor_seed', 0))
+    m = ctx.measured
+    runs = [ctx.axis.resimulate(ctx.calibrated, ctx.fit, seed=seed + i) for i in (1, 2)]
+    diffs = []
+    for part in held:
+        a, b = ctx.windows[part]
+        t = m.time[m.window(a + SETTLE, b)]
+        x1, x2 = (np.interp(t, tt, cols['nut_position']) for cols, tt in runs)
+        diffs.append(x1 - x2)
+    d = np.concatenate(diffs) if diffs else np.empty(0)
+    return float(np.sqrt(np.mean(d * d))) if len(d) else None
 
 
 def _stats(e, sigma):
