@@ -26,7 +26,10 @@ through :mod:`.commands` into a :class:`~leadscrew_sim.core.commands.CommandHold
 each tick steps the model and hands the encoded states to the publishers and
 the recorder (:mod:`leadscrew_sim.io.recorder`). Topics and QoS come from
 :data:`leadscrew_sim.io.topics.TOPIC_SPECS`; parameters: :mod:`.parameters`;
-diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`. With
+diagnostics: :mod:`.diagnostics`; deadline timing: :mod:`.timing`; the
+mix-ins of the node class: the main loops (:mod:`.loops`), the command
+callbacks (:mod:`.command_callbacks`), each tick's step and what it
+publishes (:mod:`.stepping`) and the services (:mod:`.services`). With
 ``foxglove_port`` the messages also go to the live view (:mod:`.foxglove_live`,
 imported only then): ``self.sink`` is where every message's bytes go.
 """
@@ -41,28 +44,25 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.serialization import serialize_message
 from std_srvs.srv import SetBool, Trigger
 
 from ..core import ParameterError, ScrewParams
 from ..core.commands import COMMAND_LOG_TIME, NutMap
 from ..core.delivery import StateDelivery
-from ..core.drive_modes import FAULT_NAMES
-from ..core.faults import SimulationFault
 from ..core.model import LeadScrewModel, MAX_SUBSTEPS_PER_STEP
 from ..core.warmup import kernel_ready
-from ..io.cdr import encode_bool
 from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
 from ..io.run_file import UPDATE_RECORD
 from ..io.session import StorageOptions
-from ..io.topics import SWITCH_TOPICS, TOPIC_SPECS
+from ..io.topics import TOPIC_SPECS
+from .command_callbacks import CommandCallbacks
 from .commands import CommandInputs
 from .description import RobotDescription
-from .diagnostics import diagnostic_array
 from .interfaces import message_class, qos_profile
 from .loops import ClockLoops
 from .services import AxisServices
+from .stepping import Stepping
 from .parameters import (declare_live_view, DEFAULT_PRESET, declare_parameters,
                          integers_as_doubles, StartupError, validate_changes)
 from .timing import LoopStats
@@ -78,7 +78,7 @@ COMMAND_QOS = qos_profile(TOPIC_SPECS['torque_command'][2])
 STATE_QOS = qos_profile(TOPIC_SPECS['joint_states'][2])
 
 
-class LeadScrewSimNode(AxisServices, ClockLoops, Node):
+class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Node):
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
@@ -201,14 +201,6 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
                 self.get_logger().info('recording stopped')
 
     # -- ROS interfaces ------------------------------------------------------
-    def command_callbacks(self):
-        """Return {command topic: callback taking the CDR bytes} (ROS and the live view)."""
-        return {'torque_command': self._on_torque,
-                'joint_commands': self._on_joint_commands,
-                'external_force': self._on_force,
-                'velocity_command': self._on_velocity,
-                'position_command': self._on_position}
-
     def _build_interfaces(self):
         """Create the publishers and subscriptions of the topic table, and the services."""
         callbacks = self.command_callbacks()
@@ -293,127 +285,11 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             self.get_logger().info(f'recording to {os.path.abspath(path)}')
         return path
 
-    # -- command callbacks -----------------------------------------------------
+    # -- sim time ----------------------------------------------------------------
     def _sim_now(self):
         return self.t0_ns + self.n * self.dt_ns
 
-    def _command_time(self):
-        # lockstep: the command arrives before its tick, at the current sim time
-        return self._sim_now() if self.mode == 'lockstep' else self.tick_time
-
-    def _record_cmd(self, topic, data):
-        self._events += 1
-        if self.sink.active:
-            self.sink.write(self._rec_topic[topic], data, self._sim_now())
-
-    def _on_torque(self, data):
-        self._record_cmd('torque_command', data)
-        self.inputs.torque_command(data, self._command_time())
-        if self.mode == 'lockstep':
-            self._lockstep_tick()
-
-    def _on_joint_commands(self, data):
-        self._record_cmd('joint_commands', data)
-        self.inputs.joint_commands(data, self._command_time())
-        if self.mode == 'lockstep':
-            self._lockstep_tick()
-
-    def _on_velocity(self, data):
-        self._record_cmd('velocity_command', data)
-        self.inputs.velocity_command(data, self._command_time())
-        if self.mode == 'lockstep':
-            self._lockstep_tick()
-
-    def _on_position(self, data):
-        self._record_cmd('position_command', data)
-        self.inputs.position_command(data, self._command_time())
-        if self.mode == 'lockstep':
-            self._lockstep_tick()
-
-    def _on_force(self, data):
-        self._record_cmd('external_force', data)
-        self.inputs.external_force(data)
-
-    # -- stepping ----------------------------------------------------------------
-    def _step(self, age_now):
-        """Advance one fixed step and publish; age_now is the time base of command ages."""
-        model = self.model
-        if model.fault:
-            return
-        command = self.inputs.command_for_step(age_now)
-        if command is not None:
-            model.command(*command)
-        try:
-            model.advance_held(self.inputs.hold.force)
-        except SimulationFault as exc:
-            self.get_logger().error(f'simulation fault, integration stopped: {exc}; '
-                                    'call ~/reset to restart')
-            return
-        self.n += 1
-        self._publish_states(self.n % self.settings.publish_decimation == 0)
-        switches = model.switches()
-        if switches != self._switches or self.n % self._switch_period == 0:
-            self._publish_switches(switches)       # on a change and at 10 Hz
-        fault = model.drive_fault()
-        if fault != self._fault_seen:
-            self._log_fault(fault)
-        if self._pub_clock is not None:
-            self._emit('/clock', self._ser_clock(self._sim_now(), ()))
-
-    def _publish_states(self, sampled):
-        """
-        Publish the sensor samples due now and, on a sampled tick, the truth.
-
-        The sensor states pass through :class:`StateDelivery` (delay, loss) with
-        their sampling stamp; /tf follows the last delivered joint values.
-        """
-        stamp, model, enc = self._sim_now(), self.model, self._encoder
-        delivery = self.delivery
-        if sampled:
-            delivery.sample(self.n, stamp, model.joint_values())
-        values = None
-        for s_stamp, values in delivery.due(self.n):
-            for topic, data in enc.sensor(s_stamp, values):
-                self._emit(topic, data)
-        if sampled:
-            for topic, data in enc.truth(stamp, model.truth_values()):
-                self._emit(topic, data)
-            if self.sink.active:
-                for topic, data in enc.analysis(stamp, model.analysis_values()):
-                    self.sink.write(self._rec_topic[topic], data, stamp)
-        if values is not None and self._desc is not None:
-            self._desc.publish_tf(s_stamp, values[0], values[1], self.sink)
-
-    def _publish_switches(self, switches):
-        """Publish and record the switch states (on a change and at 10 Hz)."""
-        self._switches = switches
-        for topic, on in zip(SWITCH_TOPICS, switches):
-            self._emit(topic, encode_bool(on == 1.0))
-
-    def _log_fault(self, code):
-        self._fault_seen = code
-        if code:
-            st = self.model.drive_status()
-            if self.model.is_stepper:
-                self.get_logger().error(f'drive fault: {FAULT_NAMES[code]}; stepper disabled, '
-                                        'windings open until ~/clear_fault')
-                return
-            self.get_logger().error(
-                f'drive fault: {FAULT_NAMES[code]} (following error '
-                f'{st["following_error"]:.6g} rad); torque off until ~/clear_fault')
-
-    def _emit(self, topic, data):
-        """Publish the serialized state ``data`` on ``topic`` and record it."""
-        self._pubs[topic].publish(data)
-        if self.sink.active:
-            self.sink.write(self._rec_topic[topic], data, self._sim_now())
-
-    def _lockstep_tick(self):
-        self.tick_time = self._sim_now()
-        self._step(self.tick_time)
-        self.loop.steps(1)
-        self.recorder.flush()
-
+    # -- statistics and shutdown --------------------------------------------------
     def timing_stats(self):
         """Return the timing statistics of the run so far (lateness in ns)."""
         return dict(
@@ -421,25 +297,6 @@ class LeadScrewSimNode(AxisServices, ClockLoops, Node):
             **self.loop.run_stats(),
             rejected_commands=self.inputs.rejected, ignored_commands=self.inputs.ignored,
             commands=self.inputs.commands, fault=self.model.fault)
-
-    def _publish_diagnostics(self, now):
-        lateness = self.loop.window(now)
-        self._next_diag = now + NS
-        self.recorder.poll()
-        inp = self.inputs
-        age = inp.age(now, None if self.mode == 'realtime' else self._sim_now())
-        arr = diagnostic_array(
-            name=self.get_name(), preset=self.preset, params=self.params, model=self.model,
-            clock_mode=self.mode, sim_time_ns=self._sim_now(),
-            target_rate=self.settings.update_rate, command_age=age, stale=inp.hold.stale,
-            loop=self.loop, lateness=lateness,
-            counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder,
-            dropped=(inp.hold.dropped, self.delivery.dropped),
-            live=None if self._live is None else self._live.status())
-        data = serialize_message(arr)
-        self._pub_diag.publish(data)
-        if self.sink.active:
-            self.sink.write(self._rec_topic['diagnostics'], data, self._sim_now())
 
     def close(self):
         """Write the stats file, close the recorder."""
