@@ -143,7 +143,7 @@ def test_the_axis_section_names_the_mapping_and_the_sensors_read(commissioned):
 
 
 def _truth_twin_errors(bag, window, seeds):
-    """Return {seed: RMS [m]} of the truth's twin against the bag's nut on ``window``."""
+    """Return {seed: RMS [m]} of the truth's twin against the bag's nut on ``window`` [s]."""
     from leadscrew_sim.cli.main import build_parser
     from leadscrew_sim.offline.commission.sources import ForeignAxis
     from leadscrew_sim.offline.options import open_recording
@@ -178,7 +178,9 @@ def test_held_out_error_at_the_closed_loop_noise_floor(commissioned):
     bag, _out, report, _err = commissioned
     twin = report['sections']['twin']
     assert 'reversals' in twin['held_out_parts'], twin
-    window = twin['parts']['reversals']['window']
+    origin = report['time_origin_s']
+    assert abs(origin - B.EPOCH / NS) < 1.0        # the report's times count from the bag's start
+    window = [origin + t for t in twin['parts']['reversals']['window']]
     errors = _truth_twin_errors(bag, window, (11, 1, 2))
     sigma = twin['noise_um'] * 1e-6
     assert 0.8 <= errors[11] / sigma <= 1.6, (errors, sigma)

@@ -54,7 +54,8 @@ class Context:
     ``noise`` {signal: sigma} of the fit, ``twin`` the calibrated
     re-simulation's columns (or None), ``rate`` the step rate [Hz], ``axis``
     where the pieces came from (:mod:`.sources`: the recording's own or a
-    mapped real axis).
+    mapped real axis), ``origin`` the log time [s] every time here counts
+    from (0, or the start of a recording stamped in epoch time).
     """
 
     path: str
@@ -74,6 +75,7 @@ class Context:
     fitted_on: list = dataclasses.field(default_factory=list)
     rate: float = 1000.0
     axis: object = None
+    origin: float = 0.0
 
     def held(self, kind, t):
         """Return the command of ``kind`` in force at the times ``t`` [s] (NaN before any)."""

@@ -74,6 +74,10 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
         raise RunError(f'{path}: no commission part found in its commands ({duration:.3g} s); '
                        'record `leadscrew_sim excite commission`')
     check_span(windows, duration)
+    origin = _origin(st)
+    windows = {n: (a - origin, b - origin) for n, (a, b) in windows.items()}
+    commands = {k: (ts - origin, vs) for k, (ts, vs) in commands.items()}
+    axis.measured.time = axis.measured.time - origin
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
@@ -82,7 +86,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     with tempfile.TemporaryDirectory(prefix='commission_') as work:
         ctx = Context(path=str(path), rec=rec, windows=windows, commands=commands,
                       measured=axis.measured, start=start, label=label, work=work,
-                      identify_args=identify_args, calibrated=start, axis=axis)
+                      identify_args=identify_args, calibrated=start, axis=axis,
+                      origin=origin)
         ctx.rate = axis.rate
         sections = {}
         for i, (name, fn) in enumerate(STAGES):
@@ -95,6 +100,7 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     sections = {'axis': _axis(ctx, duration, source), **sections}
     sections['undetermined'] = _undetermined(sections)
     report = {'format': 'leadscrew_sim.commission/1', 'recording': str(path),
+              'time_origin_s': origin,
               'sections': _clean(sections), 'timings_s': timings,
               'wall_s': time.perf_counter() - t_all, 'fitted_on': ctx.fitted_on}
     _write_fit(os.path.join(out_dir, 'fit.yaml'), ctx)
@@ -107,6 +113,18 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     progress(f'commission: wrote {out_dir}/fit.yaml, report.json, report.html in '
              f'{report["wall_s"]:.1f} s')
     return report
+
+
+#: Log times past this [s] are a wall clock's (epoch): the report counts from the start.
+EPOCH_S = 1e6
+
+
+def _origin(st):
+    """Return the time [s] the report's times count from: 0, or an epoch recording's start."""
+    if st is None or not st.message_count:
+        return 0.0
+    start = st.message_start_time / NS
+    return float(start) if start > EPOCH_S else 0.0
 
 
 def _axis(ctx, duration, source):

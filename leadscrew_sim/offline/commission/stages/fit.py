@@ -40,7 +40,7 @@ def run(ctx, say=None):
                                  f'starting values of {ctx.label}')
         return section
     path = os.path.join(ctx.work, 'fit_window.mcap')
-    write_window(ctx.rec, path, sweep[1])
+    write_window(ctx.rec, path, ctx.origin + sweep[1])
     args = ctx.identify_args
     args.file, args.fit = path, ','.join(FIT)
     out = fit_recording(args, None if say is None else StageLines(say))

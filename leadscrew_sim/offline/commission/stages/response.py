@@ -32,7 +32,7 @@ def run(ctx):
     if 'chirp' in ctx.windows:
         a, b = ctx.windows['chirp']
         path = os.path.join(ctx.work, 'chirp_window.mcap')
-        write_window(ctx.rec, path, b, a)
+        write_window(ctx.rec, path, ctx.origin + b, ctx.origin + a)
         meas = recording_response(path, RecordingOptions(
             input='velocity_command', output='motor_velocity', **ctx.axis.response_options))
         ok = meas.coherence >= 0.9

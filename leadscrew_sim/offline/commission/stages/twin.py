@@ -15,13 +15,15 @@ DRIFTING = ('breakaway', 'chirp')
 SETTLE = 0.5
 #: The sensor settings whose noise is drawn from the sensor seed.
 NOISY = ('encoder_noise', 'scale_noise')
+#: Twins of other sensor seeds whose spread gives the closed loop's noise floor.
+DRAWS = 3
 
 
 def run(ctx):
     """Re-simulate the whole recording with the calibrated set; return the held-out section."""
     section = {'title': 'The twin against the recording', 'parts': {}, 'cannot': []}
-    cols, ctx.twin_time = ctx.axis.resimulate(ctx.calibrated, ctx.fit)
-    ctx.twin = cols
+    cols, t = ctx.axis.resimulate(ctx.calibrated, ctx.fit)
+    ctx.twin, ctx.twin_time = cols, t - ctx.origin
     held = [p for p in HELD_OUT if p in ctx.windows] if ctx.fit else []
     sigma = ctx.noise.get('nut_position')
     section['noise_um'] = None if sigma is None else sigma * 1e6
@@ -85,7 +87,7 @@ def run(ctx):
                  rms_over_floor=rms * 1e-6 / floor if floor > 0 else None)
         section['floor'] = ('the drive closes its loops over noisy sensors, so where the '
                             'thread sticks and slips at each target depends on the noise '
-                            'drawn: two twins that differ in their sensor noise alone differ '
+                            'drawn: twins that differ in their sensor noise alone differ '
                             f'by {spread * 1e6:.3g} um RMS on these parts; with the reading\'s '
                             f'own noise that is a floor of {floor * 1e6:.3g} um, which no twin '
                             'can beat on a recording of other noise')
@@ -96,25 +98,27 @@ def run(ctx):
 
 def draw_spread(ctx, held):
     """
-    Return the RMS difference [m] of two twins differing in their noise draw, on ``held``.
+    Return the RMS difference [m] of twins differing in their noise draw alone, on ``held``.
 
-    The calibrated set re-simulated with two other sensor seeds; None when
-    the twin's sensors have no noise (nothing is drawn).
+    The calibrated set re-simulated with :data:`DRAWS` other sensor seeds,
+    the RMS over every pair's difference; None when the twin's sensors have
+    no noise (nothing is drawn).
     """
     values = ctx.axis.twin_values(ctx.calibrated, ctx.fit)
     if not any(values.get(n) for n in NOISY):
         return None
     seed = int(values.get('sensor_seed', 0))
     m = ctx.measured
-    runs = [ctx.axis.resimulate(ctx.calibrated, ctx.fit, seed=seed + i) for i in (1, 2)]
-    diffs = []
-    for part in held:
-        a, b = ctx.windows[part]
-        t = m.time[m.window(a + SETTLE, b)]
-        x1, x2 = (np.interp(t, tt, cols['nut_position']) for cols, tt in runs)
-        diffs.append(x1 - x2)
-    d = np.concatenate(diffs) if diffs else np.empty(0)
-    return float(np.sqrt(np.mean(d * d))) if len(d) else None
+    t = np.concatenate([m.time[m.window(ctx.windows[p][0] + SETTLE, ctx.windows[p][1])]
+                        for p in held]) if held else np.empty(0)
+    if not len(t):
+        return None
+    xs = []
+    for i in range(1, DRAWS + 1):
+        cols, tt = ctx.axis.resimulate(ctx.calibrated, ctx.fit, seed=seed + i)
+        xs.append(np.interp(t, tt - ctx.origin, cols['nut_position']))
+    d = np.concatenate([xs[i] - xs[j] for i in range(DRAWS) for j in range(i + 1, DRAWS)])
+    return float(np.sqrt(np.mean(d * d)))
 
 
 def _stats(e, sigma):
