@@ -1,7 +1,7 @@
 """
 Benchmark ``leadscrew_sim commission`` on the default commission recording of tr12x3.
 
-Run: .venv/bin/python bench/bench_commission.py [--repeat 1] [--seed 11]
+Run: .venv/bin/python bench/bench_commission.py [--repeat 1] [--seed 11] [--bag]
 
 ``simulate --excite commission`` records tr12x3 with its friction moved by the
 identification tests' factors (mu_s x1.25, mu_k x0.8, Stribeck velocity
@@ -11,6 +11,10 @@ as a subprocess (all stages). Printed: the wall time of the whole command,
 its CPU time (one core: the bound of the wall time on an idle host) and the
 load average, the stage lines on stderr, each stage's time (from
 report.json), the fitted values against the truth and the held-out error.
+``--bag``: the run is first made a robot's rosbag2 bag (joint_states at
+500 Hz with jitter and drops, JointState commands, a segments sidecar: as
+test/cli/test_commission_bag.py writes it, with rosbags) and ``commission``
+reads the bag with its mapping flags.
 """
 import argparse
 import json
@@ -30,6 +34,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--repeat', type=int, default=1)
     ap.add_argument('--seed', type=int, default=11)
+    ap.add_argument('--bag', action='store_true', help='commission a robot bag of the run')
     a = ap.parse_args()
     from leadscrew_sim import load_preset
     p0 = load_preset('tr12x3')
@@ -42,13 +47,24 @@ def main():
         rec = os.path.join(d, 'run.mcap')
         subprocess.run(cli + ['simulate', '--preset', 'tr12x3', '--excite', 'commission', *sets,
                               '-q', '-o', rec], check=True, env=dict(os.environ))
-        print(f'command: leadscrew_sim commission RUN -o DIR  (RUN: simulate --preset tr12x3 '
+        extra = []
+        if a.bag:
+            here = os.path.dirname(os.path.abspath(__file__))
+            sys.path[:0] = [os.path.join(here, '..', 'test'),
+                            os.path.join(here, '..', 'test', 'cli')]
+            import test_commission_bag as T
+            from pathlib import Path
+            bag, side = os.path.join(d, 'robot_bag'), os.path.join(d, 'parts.json')
+            T.write_robot_bag(Path(rec), Path(bag), Path(side))
+            rec, extra = bag, ['--segments', side, *T.mapping()]
+        print(f'command: leadscrew_sim commission RUN -o DIR {" ".join(extra)}  (RUN: '
+              f'{"a robot bag of " if a.bag else ""}simulate --preset tr12x3 '
               f'--excite commission {" ".join(sets)})')
         for k in range(a.repeat):
             out = os.path.join(d, f'out{k}')
             t0 = time.perf_counter()
             c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            subprocess.run(cli + ['commission', rec, '-o', out], check=True,
+            subprocess.run(cli + ['commission', rec, '-o', out, *extra], check=True,
                            env=dict(os.environ))
             wall = time.perf_counter() - t0
             c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -65,7 +81,8 @@ def main():
                   f'{err:+.2%}), 95 % [{row["lower"]:.6g}, {row["upper"]:.6g}]')
         h = r['sections']['twin']['held_out']
         print(f'  held-out (reversals): RMS {h["rms_um"]:.3g} um = {h["rms_over_noise"]:.3g} '
-              f'noise, max {h["max_um"]:.3g} um')
+              f'noise, max {h["max_um"]:.3g} um; closed-loop floor {h.get("floor_um", 0):.3g} '
+              f'um ({h.get("rms_over_floor", float("nan")):.3g} times)')
 
 
 if __name__ == '__main__':
