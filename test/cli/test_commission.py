@@ -191,7 +191,10 @@ def test_held_out_error_at_the_noise_level(commissioned):
     (the truth) re-simulated the same way give the noise level (RMS / sigma
     in [0.8, 1.6]: the scale's quantisation and noise, sigma as identify
     knows it). The calibrated set differs from the truth within its
-    intervals; its error stays below 8 sigma RMS.
+    intervals; its error stays below 8 sigma RMS. With other noise draws the
+    truth misses by the closed loop's floor (the drive's loops over noisy
+    sensors decide where the thread sticks): the report's floor is within a
+    factor 2 of that miss, the calibrated twin within 1.5 times it.
     """
     rec, _out, report, _err, _wall = commissioned
     s = report['sections']['twin']
@@ -213,6 +216,18 @@ def test_held_out_error_at_the_noise_level(commissioned):
     e = xs[k] - np.interp(ts[k], t, cols['nut_position'])
     sigma = s['noise_um'] * 1e-6
     assert 0.8 <= np.sqrt(np.mean(e ** 2)) / sigma <= 1.6
+    # with other noise draws the truth itself misses by the closed loop's floor: the
+    # report's floor (three calibrated twins of other draws) within a factor 2 of it, and
+    # the calibrated twin within 1.5 times it
+    other = []
+    for seed in (1, 2):
+        sim = Resim(r, {'sensor_seed': seed})
+        cols = sim.replay()
+        e = xs[k] - np.interp(ts[k], t, cols['nut_position'])
+        other.append(np.sqrt(np.mean(e ** 2)))
+    other = float(np.mean(other))
+    assert 0.5 <= h['floor_um'] * 1e-6 / other <= 2.0, (h, other)
+    assert h['rms_um'] * 1e-6 <= 1.5 * other, (h, other)
 
 
 def test_the_mixed_run_re_simulates_bit_for_bit(commissioned):
