@@ -72,6 +72,12 @@ def report(path, out):
                      f'parameter {100 * SHIFT:g} % up, then down): '
                      + ('the last explained the recording and replaced the fit' if explained
                         else 'none explained the recording'))
+    if out.get('loop_at_fit') is not None:
+        grown, explained = out['loop_at_fit']
+        lines.append('the drive loop\'s response to the sensors, measured again at the rejected '
+                     f'fit, raised the noise level of {", ".join(grown)}; fitted again from the '
+                     'start with it: ' + ('explained the recording and replaced the fit'
+                                          if explained else 'did not explain it either'))
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '

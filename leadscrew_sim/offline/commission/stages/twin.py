@@ -91,7 +91,7 @@ def run(ctx):
                             f'by {spread * 1e6:.3g} um RMS on these parts; with the reading\'s '
                             f'own noise that is a floor of {floor * 1e6:.3g} um, which no twin '
                             'can beat on a recording of other noise')
-        section['sentence'] += (f' ({rms * 1e-6 / floor:.3g} times the closed loop\'s noise '
+        section['sentence'] += (f' ({rms * 1e-6 / floor:.2f} times the closed loop\'s noise '
                                 f'floor of {floor * 1e6:.3g} um)')
     return section
 
