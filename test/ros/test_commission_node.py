@@ -86,6 +86,15 @@ def test_commission_over_dds_recovers_the_axis_and_the_restart_reproduces_it(run
             assert row['reason'] and name not in fitted, row
             continue
         assert name in fitted, report['sections']['identify']
+        if 'stribeck_velocity' not in fitted:
+            # with the Stribeck velocity not determined, the others are fitted with it held at
+            # the preset's (17 % below the truth): the report says they are conditional on it
+            # and widens their intervals to cover its plausible range, which must then hold
+            # the truth; the value itself moves with the held one (a run of 2026-12-04: mu_s
+            # 0.2221, 3.4 % off, interval +-46 %), so the tolerance is not asked of it
+            assert 'conditional on stribeck_velocity held' in row['reason'], row
+            assert row['lower'] <= TRUTH[name] <= row['upper'], row
+            continue
         # (whether the 95 % intervals hold the truth is the simulated tests' question: there
         # the recording is fixed by its seed, here each run's DDS timing makes a new one, and
         # a 95 % interval misses in one run of twenty by design)
