@@ -275,6 +275,54 @@ def test_the_recordings_refits_bound_the_interval_of_a_rough_cost(ripple):
         assert vd.rel == pytest.approx(1.96 * 1e-4 / math.sqrt(400) / 0.12, rel=0.05)
 
 
+class _TwoMinima:
+    """
+    A fit problem in mu_k with a second minimum: residual (d - 2c [d > c]) / s plus fixed noise.
+
+    d = mu_k - truth [-]. Below d = c the residual's line crosses zero at the
+    truth; above it, at d = 2c: a fit started above c ends at the truth + 2c.
+    """
+
+    jac_steps = ident.INTERVAL_JAC_STEPS
+
+    def __init__(self, truth, c):
+        self.truth, self.c = truth, c
+        self.noise = np.random.default_rng(3).standard_normal(400)
+
+    def residuals(self, values, n=None):
+        d = values['mu_k'] - self.truth
+        line = d - 2 * self.c if d > self.c else d
+        return (line / 1e-4 + self.noise)[None, :]
+
+
+def test_the_recordings_refits_that_end_elsewhere_reach_the_interval_there():
+    """
+    A recording refit that comes back, but to another minimum, widens the interval to it.
+
+    mu_k = 0.12, c = 2.5e-4. The fit from the truth ends at the truth, with
+    the Jacobian's interval 1.96 x 1e-4 / sqrt(400) = 9.8e-6. The recording's
+    refits start 1 % (1.2e-3) off: the one from below comes back to the
+    truth, the one from above stops at the second zero, 2c = 5e-4 above it.
+    Both moved most of their offset (not stalled), yet the cost does not
+    pick the fit over that point: the interval must reach 5e-4 (0.42 %) and
+    say why; the truth + 2c lies inside it.
+    """
+    from leadscrew_sim.analysis.identify.bootstrap import resolution
+    start = load_preset('tr12x3', mu_k=0.12)
+    problem = _TwoMinima(0.12, 2.5e-4)
+    coords = ident.coordinates(['mu_k'], start)
+    res = ident.fit(problem.residuals, coords)
+    bounds = {c.name: (c.lower, c.upper) for c in coords}
+    assert abs(res.value('mu_k') - 0.12) < 1e-4
+    assert res.verdict('mu_k').upper - 0.12 < 1e-4      # the Jacobian's interval: narrow
+    out = resolution(problem, res, ['mu_k'], start, coords, None, bounds)
+    vd = out.verdict('mu_k')
+    assert problem.resolution == {}                      # nothing stalled
+    assert vd.identified and 'ended that far from it' in vd.reason, vd
+    assert vd.rel == pytest.approx(5e-4 / 0.12, rel=0.05), vd
+    assert vd.lower < 0.12 < 0.12 + 5e-4 * (1 - 0.05) < vd.upper, vd
+
+
 def _held_problem(noise, seed=3):
     """
     Return (residuals, x1, x2, y) of a linear signal y = mu_k x1 + mu_s x2 (+ noise).

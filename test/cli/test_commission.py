@@ -230,6 +230,45 @@ def test_held_out_error_at_the_noise_level(commissioned):
     assert h['rms_um'] * 1e-6 <= 1.5 * other, (h, other)
 
 
+def test_the_noise_level_needs_the_exact_parameters(commissioned):
+    """
+    Only the recording's exact parameters reach the noise level on the held-out reversals.
+
+    Why the held-out figure is judged against the closed loop's floor, not
+    against the noise: the truth re-simulated with the recorded noise draw
+    reads at the noise level, but the same truth with one friction
+    parameter moved by 1e-8 of itself (far below any interval) decorrelates
+    where the position loop, acting on noisy quantised readings, lets the
+    thread stick at each target. Its error is then at least 1.5 times the
+    exact truth's (runs: 1.8 to 2.4 times): the noise level is out of reach
+    of any fit, and the headline's multiple of the floor is the figure a
+    fit can be held to.
+    """
+    rec, _out, report, _err, _wall = commissioned
+    from leadscrew_sim.offline.options import open_recording
+    from leadscrew_sim.offline.replay.resim import Resim
+    from leadscrew_sim.io import cdr as C
+    r = open_recording(rec)
+    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/joint_states'
+            for st, _n, pos, _v, _e in [C.decode_joint_state(data)]]
+    ts, xs = np.array(rows).T
+    a, b = report['sections']['twin']['parts']['reversals']['window']
+    k = (ts >= a) & (ts <= b)
+
+    def held_out_rms(values):
+        sim = Resim(r, values)
+        x = sim.replay()['nut_position']
+        t = (np.arange(len(x)) + 1) * sim.dt_ns / 1e9
+        e = xs[k] - np.interp(ts[k], t, x)
+        return float(np.sqrt(np.mean(e ** 2)))
+
+    truth = _truth()
+    exact = held_out_rms({})
+    for name in TOLERANCE:
+        moved = held_out_rms({name: truth[name] * (1.0 + 1e-8)})
+        assert moved >= 1.5 * exact, (name, moved, exact)
+
+
 def test_the_mixed_run_re_simulates_bit_for_bit(commissioned):
     """
     The commission run of simulate, a topic per part, is what resim makes of its recorded commands.

@@ -104,7 +104,7 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
 
 def resolution(problem, res, names, start, coords, max_nfev, bounds):
     """
-    Widen each interval to the offset from which the recording's own refits do not come back.
+    Widen each interval to what the recording's own refits from off its fit leave open.
 
     Two refits of the recording itself start from every identified parameter
     moved by its offset, max(AWAY half-widths, MIN_HALF_WIDTH of its size),
@@ -116,6 +116,12 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
     far off. Its interval becomes at least value +- the offset, said to be a
     lower bound. The synthetic recordings of :func:`bootstrap` cannot show
     this: their fits start near their truth, the recording's from afar.
+    A parameter the refits do bring back, but to a value farther from the fit
+    than its interval reaches, gets an interval reaching that far when the
+    refit's cost is within the cost's own spread of the fit's
+    (:func:`_cost_spread`): the data do not rank the two ends, so the
+    recording does not single out a value closer than that (a rough cost's
+    other minimum, or a valley too flat to follow).
     Returns the new FitResult. The arguments are :func:`bootstrap`'s.
     """
     identified = np.array([vd.identified for vd in res.verdicts])
@@ -124,7 +130,7 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
     offsets = np.array([max(AWAY * _half(vd, v, c, 0.0), MIN_HALF_WIDTH * max(abs(v), c.typical))
                         if vd.identified else 0.0
                         for c, v, vd in zip(coords, res.values, res.verdicts)])
-    starts, ends, nfev = [], [], res.nfev
+    starts, ends, costs, nfev = [], [], [], res.nfev
     for sign in (1.0, -1.0):
         away = {c.name: min(c.upper, max(c.lower, v + sign * off))
                 for c, v, off in zip(coords, res.values, offsets)}
@@ -133,18 +139,43 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
             max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
         starts.append([away[c.name] for c in coords])
         ends.append(refit.values)
+        costs.append(_cost(refit))
         nfev += refit.nfev
     stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & identified
     problem.resolution = {c.name: float(off) for c, off, s in zip(coords, offsets, stalled) if s}
+    rivals = [e for e, cost in zip(ends, costs) if cost <= _cost(res) * (1.0 + _cost_spread(res))]
+    reach = (np.max(np.abs(np.array(rivals) - np.array(res.values)), axis=0) if rivals
+             else np.zeros(len(res.values)))
     verdicts = list(res.verdicts)
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
-        if stalled[i] and offsets[i] > 0.5 * (vd.upper - vd.lower):
+        half = 0.5 * (vd.upper - vd.lower)
+        if stalled[i] and offsets[i] > half:
             verdicts[i] = _widened(vd, v, c, float(offsets[i]), vd.std, 'recording')
+        elif vd.identified and reach[i] > half:
+            verdicts[i] = _widened(vd, v, c, float(reach[i]), vd.std, 'reach')
     values = [v if vd.identified else v0
               for v, v0, vd in zip(res.values, res.initial, verdicts)]
     return dataclasses.replace(res, values=values, lower=[vd.lower for vd in verdicts],
                                upper=[vd.upper for vd in verdicts], verdicts=verdicts,
                                nfev=nfev)
+
+
+def _cost(res):
+    """Return the fit's cost: the sum over the signals of their mean squared residual [noise^2]."""
+    return float(np.sum(np.asarray(res.rms, dtype=float) ** 2))
+
+
+def _cost_spread(res):
+    """
+    Return the relative spread sqrt(2 / n_eff) of the fit's cost under another noise draw.
+
+    A chi-square of n_eff independent residuals (the residuals over their
+    correlation length) has a relative standard deviation sqrt(2 / n_eff):
+    two ends whose costs differ by less could swap order with another
+    draw, so the data do not rank them.
+    """
+    n_eff = max(1.0, res.n_residuals / max(1, res.bandwidth))
+    return float(np.sqrt(2.0 / n_eff))
 
 
 def _half(vd, v, c, floor):
@@ -244,12 +275,19 @@ def _widened(vd, v, c, hw, s_b, stalled=''):
     refits of the synthetic recordings stayed where they started for this
     parameter, 'recording' when the recording's own did: ``hw`` is then
     about the offset of those starts, a lower bound of the interval, not a
-    spread.
+    spread; 'reach' when the recording's own refits came back but ended
+    ``hw`` from the fit.
     """
     lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
     rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
     ok = bool(rel <= REL_MAX)
-    if stalled:
+    if stalled == 'reach':
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (refits of the recording '
+               'started off the fit on either side ended that far from it: the recording\'s '
+               'cost does not single out a value closer than that)' if ok else
+               f'not identifiable: refits of the recording ended +-{100 * rel:.3g} % from the '
+               'fit: its cost does not single out a value closer than that')
+    elif stalled:
         refits = (f'refits of {BOOTSTRAP} synthetic recordings' if stalled == 'synthetic' else
                   'refits of the recording')
         why = (f'identified: 95 % interval +-{100 * rel:.3g} % or wider ({refits} started '
