@@ -205,31 +205,13 @@ def test_held_out_error_at_the_noise_level(commissioned):
     h = s['held_out']
     assert h['rms_over_noise'] < 8.0, h
     assert f'to {h["rms_um"]:.3g} um RMS on data it was not fitted to' in s['sentence']
-    from leadscrew_sim.offline.options import open_recording
-    from leadscrew_sim.offline.replay.resim import Resim
-    r = open_recording(rec)
-    sim = Resim(r)
-    cols = sim.replay()
-    t = (np.arange(len(cols['nut_position'])) + 1) * sim.dt_ns / 1e9
-    from leadscrew_sim.io import cdr as C
-    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/joint_states'
-            for st, _n, pos, _v, _e in [C.decode_joint_state(data)]]
-    ts, xs = np.array(rows).T
-    a, b = s['parts']['reversals']['window']
-    k = (ts >= a) & (ts <= b)
-    e = xs[k] - np.interp(ts[k], t, cols['nut_position'])
+    held_out_rms = _held_out_rms(rec, s['parts']['reversals']['window'])
     sigma = s['noise_um'] * 1e-6
-    assert 0.8 <= np.sqrt(np.mean(e ** 2)) / sigma <= 1.6
+    assert 0.8 <= held_out_rms({}) / sigma <= 1.6
     # with other noise draws the truth itself misses by the closed loop's floor: the
     # report's floor (three calibrated twins of other draws) within a factor 2 of it, and
     # the calibrated twin within 3 times it
-    other = []
-    for seed in (1, 2):
-        sim = Resim(r, {'sensor_seed': seed})
-        cols = sim.replay()
-        e = xs[k] - np.interp(ts[k], t, cols['nut_position'])
-        other.append(np.sqrt(np.mean(e ** 2)))
-    other = float(np.mean(other))
+    other = float(np.mean([held_out_rms({'sensor_seed': seed}) for seed in (1, 2)]))
     assert 0.5 <= h['floor_um'] * 1e-6 / other <= 2.0, (h, other)
     assert h['rms_um'] * 1e-6 <= 3.0 * other, (h, other)
 
@@ -249,28 +231,38 @@ def test_the_noise_level_needs_the_exact_parameters(commissioned):
     fit can be held to.
     """
     rec, _out, report, _err, _wall = commissioned
-    from leadscrew_sim.offline.options import open_recording
-    from leadscrew_sim.offline.replay.resim import Resim
-    from leadscrew_sim.io import cdr as C
-    r = open_recording(rec)
-    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/joint_states'
-            for st, _n, pos, _v, _e in [C.decode_joint_state(data)]]
-    ts, xs = np.array(rows).T
-    a, b = report['sections']['twin']['parts']['reversals']['window']
-    k = (ts >= a) & (ts <= b)
-
-    def held_out_rms(values):
-        sim = Resim(r, values)
-        x = sim.replay()['nut_position']
-        t = (np.arange(len(x)) + 1) * sim.dt_ns / 1e9
-        e = xs[k] - np.interp(ts[k], t, x)
-        return float(np.sqrt(np.mean(e ** 2)))
-
+    held_out_rms = _held_out_rms(rec, report['sections']['twin']['parts']['reversals']['window'])
     truth = _truth()
     exact = held_out_rms({})
     for name in TOLERANCE:
         moved = held_out_rms({name: truth[name] * (1.0 + 1e-8)})
         assert moved >= 1.5 * exact, (name, moved, exact)
+
+
+def _held_out_rms(rec, window):
+    """
+    Return f(overrides): the RMS [m] of the recorded nut reading less a re-simulation's nut.
+
+    The re-simulation is ``resim``'s of the recording with the parameter
+    overrides (none: the recording's own truth and noise draw), compared at
+    the joint_states stamps in ``window`` [s].
+    """
+    from leadscrew_sim.io import cdr as C
+    from leadscrew_sim.offline.options import open_recording
+    from leadscrew_sim.offline.replay.resim import Resim
+    r = open_recording(rec)
+    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/joint_states'
+            for st, _n, pos, _v, _e in [C.decode_joint_state(data)]]
+    ts, xs = np.array(rows).T
+    k = (ts >= window[0]) & (ts <= window[1])
+
+    def rms(overrides):
+        sim = Resim(r, overrides)
+        x = sim.replay()['nut_position']
+        t = (np.arange(len(x)) + 1) * sim.dt_ns / 1e9
+        e = xs[k] - np.interp(ts[k], t, x)
+        return float(np.sqrt(np.mean(e ** 2)))
+    return rms
 
 
 def test_the_mixed_run_re_simulates_bit_for_bit(commissioned):

@@ -143,7 +143,8 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
         nfev += refit.nfev
     stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & identified
     problem.resolution = {c.name: float(off) for c, off, s in zip(coords, offsets, stalled) if s}
-    rivals = [e for e, cost in zip(ends, costs) if cost <= _cost(res) * (1.0 + _cost_spread(res))]
+    ceiling = _cost(res) * (1.0 + _cost_spread(res))     # ends the data do not rank below
+    rivals = [e for e, cost in zip(ends, costs) if cost <= ceiling]
     reach = (np.max(np.abs(np.array(rivals) - np.array(res.values)), axis=0) if rivals
              else np.zeros(len(res.values)))
     verdicts = list(res.verdicts)
