@@ -5,8 +5,8 @@ Launch a two-axis gantry: two simulated lead screw axes, x_axis and y_axis.
     ros2 launch leadscrew_sim gantry.launch.py preset:=tr8x8 robot_state_publisher:=true
 
 Each axis is leadscrew_sim.launch.py in its own namespace with its own joint
-prefix: /x_axis/joint_states carries x_screw_joint and x_nut_joint,
-/y_axis/joint_states y_screw_joint and y_nut_joint. Both record into their own
+prefix: /x_axis/axis/joint_states carries x_screw_joint and x_nut_joint,
+/y_axis/axis/joint_states y_screw_joint and y_nut_joint. Both record into their own
 folder below record_dir (<record_dir>/x_axis, <record_dir>/y_axis). The two
 URDF trees (x_base_link, y_base_link) are not joined: mount them with a static
 transform of your machine (e.g. y_base_link on x_nut_link).

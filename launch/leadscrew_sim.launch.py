@@ -13,7 +13,8 @@ With robot_state_publisher:=true the package's URDF
 (urdf/leadscrew_axis.urdf.xacro) is rendered with xacro, with the joint prefix
 and the lead, hand, backlash, stroke, screw diameter and motor torque of the
 preset and the parameter file, so the model shown matches the simulated axis.
-It runs in the node's namespace and so listens to its joint_states.
+It runs in the node's namespace, its joint_states remapped to the node's
+axis/joint_states.
 """
 import os
 
@@ -24,6 +25,7 @@ from launch.substitutions import Command, FindExecutable, LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from leadscrew_sim.io.description import xacro_args
+from leadscrew_sim.io.topics import graph_name
 import yaml
 
 PACKAGE = 'leadscrew_sim'
@@ -117,6 +119,7 @@ def _launch_setup(context):
         actions.append(Node(
             package='robot_state_publisher', executable='robot_state_publisher',
             name='robot_state_publisher', namespace=arg['namespace'], output='screen',
+            remappings=[('joint_states', graph_name('joint_states'))],
             parameters=[{'robot_description': description,
                          'use_sim_time': explicit['use_sim_time']}]))
     return actions

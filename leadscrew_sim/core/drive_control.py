@@ -198,6 +198,19 @@ class DriveControl:
         s = self.state
         return (s[L.S_SWMIN], s[L.S_SWMAX], s[L.S_HOME])
 
+    def reference_gap(self):
+        """
+        Return the held position target less the drive's active reference [rad], theta sense.
+
+        Non-zero while the reference approaches a target further than
+        ``max_command_jump`` (it moves at the drive's limits); 0 outside
+        position mode.
+        """
+        s = self.state
+        if int(s[L.S_DMODE]) != DM.MODE_POSITION:
+            return 0.0
+        return float(self.params.hand_sign * (s[L.S_CQ] - s[L.S_DQREF])) + 0.0
+
     def drive_fault(self):
         """Return the latched drive fault's ``drive_modes.FAULT_*`` code (``FAULT_NONE``: none)."""
         return int(self.state[L.S_DFAULT])

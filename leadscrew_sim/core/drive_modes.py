@@ -19,10 +19,16 @@ FAULT_NONE = 0              #: no fault
 FAULT_FOLLOWING_ERROR = 1   #: |q_ref - q_fb| above following_error_limit in position mode
 FAULT_TORQUE_LIMIT = 2      #: velocity loop output at +-max_torque longer than torque_limit_time
 FAULT_INJECTED = 3          #: latched on request (fault injection)
+FAULT_OVERSPEED = 4         #: |motor rate| above OVERSPEED_MARGIN * max_screw_velocity, any mode
 
 #: Fault code -> name.
 FAULT_NAMES = {FAULT_NONE: 'none', FAULT_FOLLOWING_ERROR: 'following_error',
-               FAULT_TORQUE_LIMIT: 'torque_limit', FAULT_INJECTED: 'injected'}
+               FAULT_TORQUE_LIMIT: 'torque_limit', FAULT_INJECTED: 'injected',
+               FAULT_OVERSPEED: 'overspeed'}
+
+#: The overspeed fault trips at this multiple of the rated speed max_screw_velocity: the
+#: margin a servo drive leaves above its rated speed for the loops' overshoot.
+OVERSPEED_MARGIN = 1.2
 
 
 def mode_code(mode):

@@ -95,6 +95,16 @@ class ScrewParams(Schema):
     torque_limit_time: float = field(0.0, 's', 'time the velocity loop output may stay at '
                                      '+-max_torque before a drive fault latches; 0 means off',
                                      0.0, 3600.0)
+    max_screw_velocity: float = field(157.07963267948966, 'rad/s', 'rated screw speed '
+                                      '(1500 rpm), the URDF joint velocity limit; in every '
+                                      'drive mode an overspeed fault latches when the motor '
+                                      'turns faster than OVERSPEED_MARGIN (1.2) times it; 0 '
+                                      'means no limit', 0.0, 1e5)
+    max_command_jump: float = field(0.0, 'm', 'largest nut position command step the drive '
+                                    'takes at once: a position command further than this from '
+                                    'the reference (or, entering position mode, from the nut) '
+                                    'is approached at the drive velocity limit, capped by '
+                                    'max_screw_velocity; 0 means off', 0.0, 100.0)
     drive_feedback: str = field('motor_encoder', '-', 'position loop feedback: the motor '
                                 'encoder, or the linear scale (nut position mapped to a motor '
                                 'angle through the lead)', choices=DRIVE_FEEDBACKS)
@@ -233,6 +243,13 @@ class ScrewParams(Schema):
     def lead(self):
         """Lead l [m]."""
         return geometry.lead(self.pitch, self.starts)
+
+    @property
+    def reference_speed_limit(self):
+        """The drive's velocity reference limit [rad/s]: velocity_limit within max_screw_velocity."""
+        if self.max_screw_velocity > 0.0:
+            return min(self.velocity_limit, self.max_screw_velocity)
+        return self.velocity_limit
 
     @property
     def lead_ratio(self):

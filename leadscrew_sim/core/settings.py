@@ -49,9 +49,9 @@ class RunSettings(Schema):
         0.5, 's', 'a command older than this times out like a drive losing communication: '
         'torque goes to 0, a velocity command to a quick stop and hold, a position target '
         'holds (wall clock in realtime mode, sim time otherwise); 0 disables', 0.0, 3600.0)
-    max_catchup_steps: int = field(10, '-', 'extra fixed steps a late realtime tick may take '
-                                   'to catch up before the loop skips ahead (an overrun)',
-                                   0, 1000)
+    max_catchup_steps: int = field(10, '-', 'extra fixed steps a late realtime tick may '
+                                   'publish; the older steps of a longer stall are integrated '
+                                   'and recorded but not published (skipped_steps)', 0, 1000)
     publish_decimation: int = field(1, '-', 'publish the states every N-th step (/clock: '
                                     'every step)', 1, 100000)
     publish_tf: bool = field(False, '-', 'publish robot_description (transient local), '

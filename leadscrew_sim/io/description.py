@@ -34,6 +34,8 @@ XACRO_FROM_PARAMETERS = {
     'stroke_max': 'stroke_max',
     'screw_diameter': 'major_diameter',
     'max_torque': 'max_torque',
+    'max_screw_velocity': 'max_screw_velocity',
+    'initial_position': 'initial_position',
 }
 
 #: Joint names (after the prefix) of the screw (revolute) and the nut (prismatic).

@@ -18,7 +18,7 @@ import zstandard
 from .mcap_scan import MAX_CHUNK_BYTES, scan
 from .mcap_writer import MAGIC
 from .run_file import PARAMS_RECORD
-from .topics import TOPIC_SPECS
+from .topics import graph_name, TOPIC_SPECS
 
 __all__ = ['Recording', 'RecordingError', 'TopicArrays']
 
@@ -246,11 +246,14 @@ class Recording:
         longer name of the topic table ending in ``rel`` belongs to that one.
         """
         longer = [k for k in TOPIC_SPECS if k != rel and k.endswith('/' + rel)]
-        for topic in self.topic_types:
-            if (topic == rel or topic.endswith('/' + rel)) and not any(
-                    topic == '/' + k or topic.endswith('/' + k) for k in longer):
+        found = [topic for topic in self.topic_types
+                 if (topic == rel or topic.endswith('/' + rel)) and not any(
+                     topic == '/' + k or topic.endswith('/' + k) for k in longer)]
+        ours = '/' + graph_name(rel)        # the node's own name first (axis/joint_states)
+        for topic in found:
+            if topic.endswith(ours):
                 return topic
-        return None
+        return found[0] if found else None
 
 
 def _log_time(message):

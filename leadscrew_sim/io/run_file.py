@@ -38,7 +38,8 @@ CLI_RECORD = 'leadscrew_sim_cli'
 #: The description channels of a run file: key in ``RunWriter.ids`` -> (topic, type, QoS);
 #: topics as robot_state_publisher publishes them (robot_description in the namespace).
 DESCRIPTION_TOPICS = {
-    'robot_description': ('robot_description', TF.STRING_TYPE, TF.ROBOT_DESCRIPTION_QOS),
+    'robot_description': (T.graph_name('robot_description'), TF.STRING_TYPE,
+                          TF.ROBOT_DESCRIPTION_QOS),
     '/tf_static': ('/tf_static', TF.TFMESSAGE_TYPE, TF.TF_STATIC_QOS),
     '/tf': ('/tf', TF.TFMESSAGE_TYPE, TF.TF_QOS),
 }

@@ -33,6 +33,19 @@ TOPIC_SPECS = {
     '/clock': ('rosgraph_msgs/msg/Clock', 'clock', RELIABLE_10),
 }
 
+#: The name on the ROS graph of a topic whose table key differs from it: the node's
+#: JointState pair and its robot description live under ``axis/``, so that a
+#: joint_state_broadcaster (``/joint_states``) and a controller_manager
+#: (``/robot_description``) in the same namespace never share a topic with the node.
+GRAPH_NAMES = {'joint_states': 'axis/joint_states', 'joint_commands': 'axis/joint_commands',
+               'robot_description': 'axis/robot_description'}
+
+
+def graph_name(topic):
+    """Return the relative name on the graph of the topic table's (or the description's) key."""
+    return GRAPH_NAMES.get(topic, topic)
+
+
 #: The switch topics, in the order of the model's switch states (min, max, home).
 SWITCH_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role == 'switch')
 
@@ -44,7 +57,8 @@ RECORD_TOPICS = tuple(t for t, (_typ, role, _q) in TOPIC_SPECS.items() if role =
 
 
 def resolve(topic, namespace='/'):
-    """Return the resolved name of a relative topic in ``namespace`` (``'/'`` default)."""
+    """Return the resolved graph name of a topic key (:func:`graph_name`) in ``namespace``."""
+    topic = graph_name(topic)
     if topic.startswith('/'):
         return topic
     ns = namespace.rstrip('/')

@@ -87,9 +87,9 @@ class RobotDescription:
             if recorder is not None and recorder.active:
                 recorder.write(self.topics[key], data, stamp_ns)
 
-    def publish_tf(self, stamp_ns, screw_angle, nut_position, recorder):
-        """Publish (with publish_tf) and record the /tf of one state tick."""
-        pub = self.pubs.get('/tf')
+    def publish_tf(self, stamp_ns, screw_angle, nut_position, recorder, publish=True):
+        """Publish (with publish_tf, unless ``publish`` is False) and record one tick's /tf."""
+        pub = self.pubs.get('/tf') if publish else None
         if pub is None and not recorder.active:
             return
         data = self.tf(stamp_ns, self.tree.moving_values(screw_angle, nut_position))

@@ -21,7 +21,7 @@ def _us(ns):
 
 def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, target_rate,
                      command_age, stale, loop, lateness, counts, recorder, dropped=(0, 0),
-                     live=None):
+                     live=None, far_commands=0):
     """
     Return the DiagnosticArray of one window.
 
@@ -53,6 +53,9 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         (commands, state samples) lost to the injected drop rates so far.
     live : dict, optional
         The Foxglove live view's counters (``LiveView.status()``), when it runs.
+    far_commands : int
+        Position commands further than max_command_jump from the drive's
+        reference so far (each approached at the drive's limits).
 
     """
     p, m = params, model
@@ -70,6 +73,11 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
         level, msg = DiagnosticStatus.WARN, (
             'torque command stale: applying 0 N m' if drive['mode_name'] == 'torque' else
             'command stale: quick stop, holding the position')
+    gap = abs(m.reference_gap()) * p.lead_ratio
+    if gap > 0.0:
+        level, msg = DiagnosticStatus.WARN, (
+            f'position command {gap:.6g} m beyond the reference: approaching it at the '
+            "drive's limits (max_command_jump)")
     faults = p.active_faults()
     if faults:
         level, msg = DiagnosticStatus.WARN, f'injected faults active: {", ".join(faults)}'
@@ -85,7 +93,9 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
     values = _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age,
                      stale, loop, lateness, counts, recorder)
     values += [('active_faults', ', '.join(faults) or 'none'),
-               ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1]))]
+               ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1])),
+               ('far_position_commands', str(far_commands)),
+               ('reference_gap_m', f'{gap:.6g}')]
     if stepper is not None:
         values += stepper_values(stepper, p)
     if live is not None:

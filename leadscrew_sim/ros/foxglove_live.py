@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter as RosParameter
 from ..io import tf as TF
 from ..io.foxglove_server import LiveServer, ServeError
 from ..io.msgdefs import cdr_length
-from ..io.topics import SWITCH_TOPICS, TOPIC_SPECS
+from ..io.topics import graph_name, SWITCH_TOPICS, TOPIC_SPECS
 from .parameters import StartupError
 
 __all__ = ['LiveView', 'Sink']
@@ -91,9 +91,10 @@ class LiveView:
         self.inbox_dropped = 0
         self.malformed = 0             # client commands that are not CDR of their type
         channels = {topic: spec[0] for topic, spec in node.recording_channels().items()}
-        self._callbacks = {node.resolve_topic_name(t): cb
+        self._callbacks = {node.resolve_topic_name(graph_name(t)): cb
                            for t, cb in node.command_callbacks().items() if t in CLIENT_COMMANDS}
-        self._types = {node.resolve_topic_name(t): TOPIC_SPECS[t][0] for t in CLIENT_COMMANDS}
+        self._types = {node.resolve_topic_name(graph_name(t)): TOPIC_SPECS[t][0]
+                       for t in CLIENT_COMMANDS}
         latched = [node.resolve_topic_name(t) for t in SWITCH_TOPICS]
         desc = node._desc
         if desc is not None:

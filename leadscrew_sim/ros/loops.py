@@ -1,9 +1,10 @@
 """
 The node's main loops, one per clock mode: a mix-in of the node class.
 
-- ``realtime``: absolute-deadline loop on CLOCK_MONOTONIC; late ticks are
-  caught up with at most ``max_catchup_steps`` extra fixed steps, beyond that
-  the loop skips ahead (an overrun).
+- ``realtime``: absolute-deadline loop on CLOCK_MONOTONIC, step n due at
+  ``t0 + n dt``; a late tick takes every step due and publishes the last
+  ``1 + max_catchup_steps`` of them (the older ones of a stall are integrated
+  and recorded, counted as skipped, not published).
 - ``stepped``: sim time from 0, as fast as possible or paced at ``real_time_factor``.
 - ``lockstep``: one tick per received command (the command callbacks step).
 
@@ -49,10 +50,25 @@ class ClockLoops:
                 break
 
     def _run_realtime(self):
+        """
+        Step n is due at ``t0_mono + n dt`` on CLOCK_MONOTONIC, the instant of its stamp.
+
+        A late tick takes every step due: the last ``1 + max_catchup_steps``
+        publish, the older ones (a stall) are integrated and recorded but not
+        published, counted as skipped and logged. The model never falls
+        behind the clock, so every stamp stays the system time of its tick.
+        """
         period, loop = self.dt_ns, self.loop
         sleeper = DeadlineSleeper()
-        deadline = time.monotonic_ns() + period
+        origin = self.t0_mono_ns
+        before = (time.monotonic_ns() - origin) // period - self.n
+        if before > 0:          # the time from t0 (construction) to the loop's start
+            self.get_logger().info(f'loop started {before * period / 1e6:.1f} ms after t0: '
+                                   f'{before} steps integrated and recorded, not published')
+            self.tick_time = origin + (self.n + 1) * period
+            self._silent_steps(before)
         while self._running:
+            deadline = origin + (self.n + 1) * period
             sleeper.sleep_until(deadline)
             now = time.monotonic_ns()
             if now < deadline:
@@ -63,14 +79,33 @@ class ClockLoops:
             self._spin()
             due = 1 + late // period
             steps = min(due, 1 + self.settings.max_catchup_steps)
-            for i in range(steps):
+            if due > steps:
+                self._stall(due - steps, late)
+            for i in range(due - steps, due):
                 self._step(deadline + i * period)
             loop.catch_up(due, steps)
-            deadline += due * period
-            loop.steps(steps)
+            loop.steps(due)
             self.recorder.flush()
             if now >= self._next_diag:
                 self._publish_diagnostics(now)
+
+    def _stall(self, silent, late_ns):
+        """Integrate (and record) the ``silent`` oldest due steps of a stall without publishing."""
+        self.get_logger().warn(
+            f'loop stalled {late_ns / 1e6:.1f} ms: {silent} steps integrated without '
+            f'publishing (skipped_steps {self.loop.skipped_steps + silent} so far)',
+            throttle_duration_sec=1.0)
+        self._silent_steps(silent)
+
+    def _silent_steps(self, count):
+        """Take ``count`` steps from the deadline ``tick_time`` on, recorded but not published."""
+        deadline = self.tick_time
+        self._publishing = False
+        try:
+            for i in range(count):
+                self._step(deadline + i * self.dt_ns)
+        finally:
+            self._publishing = True
 
     def _run_stepped(self):
         sleeper = DeadlineSleeper()

@@ -9,9 +9,12 @@ with the stamp ``t0 + n dt`` (integer nanoseconds, strictly increasing).
 
 Clock modes (read-only parameter ``clock_mode``):
 
-- ``realtime``: absolute-deadline loop on CLOCK_MONOTONIC; late ticks are
-  caught up with at most ``max_catchup_steps`` extra fixed steps, beyond that
-  the loop skips ahead (an overrun). t0 is the ROS time at start.
+- ``realtime``: absolute-deadline loop on CLOCK_MONOTONIC; t0 is the system
+  (ROS) time at construction, paired with a monotonic instant, and step n is
+  due at t0 + n dt, so every stamp is the system time of its tick. A late
+  tick takes every step due; beyond ``max_catchup_steps`` extra steps (a
+  stall) the older ones are integrated and recorded but not published, and
+  counted in the diagnostics' skipped_steps.
 - ``stepped``: sim time from 0, ``/clock`` every tick, as fast as possible
   (``real_time_factor`` 0) or paced at ``real_time_factor``.
 - ``lockstep``: one tick per received ``torque_command`` or ``joint_commands``
@@ -55,7 +58,7 @@ from ..io.messages import StateEncoder
 from ..io.recorder import Recorder
 from ..io.run_file import UPDATE_RECORD
 from ..io.session import StorageOptions
-from ..io.topics import TOPIC_SPECS
+from ..io.topics import graph_name, TOPIC_SPECS
 from .command_callbacks import CommandCallbacks
 from .commands import CommandInputs
 from .description import RobotDescription
@@ -65,7 +68,7 @@ from .services import AxisServices
 from .stepping import Stepping
 from .parameters import (declare_live_view, DEFAULT_PRESET, declare_parameters,
                          integers_as_doubles, StartupError, validate_changes)
-from .timing import LoopStats
+from .timing import clock_pair, LoopStats
 
 __all__ = ['COMMAND_QOS', 'DEFAULT_PRESET', 'LeadScrewSimNode', 'main', 'make_executor',
            'NODE_NAME', 'qos_profile', 'STATE_QOS', 'StartupError']
@@ -92,8 +95,13 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
         self.model = self._make_model()
         kernel_ready(self.get_logger().info, self.params)   # every entry point, logged
         self.mode = s.clock_mode
-        self.t0_ns = self.get_clock().now().nanoseconds if self.mode == 'realtime' else 0
+        # realtime: t0 is the system time (ROS time) of the monotonic instant t0_mono the
+        # loop's deadlines count from, so the stamp t0 + n dt is the system time of tick n
+        self.t0_ns, self.t0_mono_ns = clock_pair() if self.mode == 'realtime' else (0, 0)
         self.n = 0                         # steps taken; stamp = t0 + n dt
+        self._publishing = True            # False while a stall's old steps are integrated
+        self.far_commands = 0              # position commands beyond max_command_jump
+        self._reference_gap = 0.0          # the drive's reference_gap after the last step
 
         # Commands (zero-order held, in the time base of _command_time) and counters.
         self.inputs = CommandInputs(self.get_logger(), s.joint_prefix, s.command_timeout,
@@ -211,11 +219,12 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
                     self._rec_topic[topic] = self.resolve_topic_name(topic)
                 continue
             msg_type, profile = message_class(type_name), qos_profile(qos)
+            name = graph_name(topic)
             if role == 'command':
-                ent = self.create_subscription(msg_type, topic, callbacks[topic], profile,
+                ent = self.create_subscription(msg_type, name, callbacks[topic], profile,
                                                raw=True)
             elif role in ('state', 'switch') or self.mode != 'realtime':   # /clock: sim time
-                ent = self._pubs[topic] = self.create_publisher(msg_type, topic, profile)
+                ent = self._pubs[topic] = self.create_publisher(msg_type, name, profile)
             else:
                 continue
             self._rec_topic[topic] = ent.topic_name

@@ -26,6 +26,8 @@ class Stepping:
         """Advance one fixed step and publish; age_now is the time base of command ages."""
         model = self.model
         if model.fault:
+            if self.mode == 'realtime':     # the stamps stay on the clock; nothing to publish
+                self.n += 1
             return
         command = self.inputs.command_for_step(age_now)
         if command is not None:
@@ -37,6 +39,8 @@ class Stepping:
                                     'call ~/reset to restart')
             return
         self.n += 1
+        if self.params.max_command_jump > 0.0:
+            self._watch_far_commands(command)
         self._publish_states(self.n % self.settings.publish_decimation == 0)
         switches = model.switches()
         if switches != self._switches or self.n % self._switch_period == 0:
@@ -46,6 +50,19 @@ class Stepping:
             self._log_fault(fault)
         if self._pub_clock is not None:
             self._emit('/clock', self._ser_clock(self._sim_now(), ()))
+
+    def _watch_far_commands(self, command):
+        """Count and log a position command the drive approaches instead of taking at once."""
+        gap = self.model.reference_gap()
+        if gap != 0.0 and command is not None and self._reference_gap == 0.0:
+            self.far_commands += 1
+            metres = abs(gap) * self.params.lead_ratio
+            self.get_logger().warn(
+                f'position command {metres:.6g} m from the drive reference, beyond '
+                f'max_command_jump {self.params.max_command_jump:g} m: approached at the '
+                f"drive's limits ({self.far_commands} such commands so far)",
+                throttle_duration_sec=1.0)
+        self._reference_gap = gap
 
     def _publish_states(self, sampled):
         """
@@ -69,7 +86,7 @@ class Stepping:
                 for topic, data in enc.analysis(stamp, model.analysis_values()):
                     self.sink.write(self._rec_topic[topic], data, stamp)
         if values is not None and self._desc is not None:
-            self._desc.publish_tf(s_stamp, values[0], values[1], self.sink)
+            self._desc.publish_tf(s_stamp, values[0], values[1], self.sink, self._publishing)
 
     def _publish_switches(self, switches):
         """Publish and record the switch states (on a change and at 10 Hz)."""
@@ -90,8 +107,9 @@ class Stepping:
                 f'{st["following_error"]:.6g} rad); torque off until ~/clear_fault')
 
     def _emit(self, topic, data):
-        """Publish the serialized state ``data`` on ``topic`` and record it."""
-        self._pubs[topic].publish(data)
+        """Publish the serialized state ``data`` on ``topic`` (unless silent) and record it."""
+        if self._publishing:
+            self._pubs[topic].publish(data)
         if self.sink.active:
             self.sink.write(self._rec_topic[topic], data, self._sim_now())
 
@@ -114,7 +132,8 @@ class Stepping:
             loop=self.loop, lateness=lateness,
             counts=(inp.commands, inp.rejected, inp.ignored), recorder=self.recorder,
             dropped=(inp.hold.dropped, self.delivery.dropped),
-            live=None if self._live is None else self._live.status())
+            live=None if self._live is None else self._live.status(),
+            far_commands=self.far_commands)
         data = serialize_message(arr)
         self._pub_diag.publish(data)
         if self.sink.active:

@@ -7,7 +7,25 @@ import time
 
 NS = 1_000_000_000
 
-__all__ = ['DeadlineSleeper', 'LoopStats', 'percentiles']
+__all__ = ['clock_pair', 'DeadlineSleeper', 'LoopStats', 'percentiles']
+
+
+def clock_pair(tries=5):
+    """
+    Return (system time, CLOCK_MONOTONIC time) [ns] of one instant.
+
+    The system time is read between two monotonic readings; the tightest of
+    ``tries`` brackets wins and its midpoint is the monotonic instant (within
+    a few microseconds of the system reading).
+    """
+    best = None
+    for _ in range(tries):
+        a = time.monotonic_ns()
+        wall = time.time_ns()
+        b = time.monotonic_ns()
+        if best is None or b - a < best[0]:
+            best = (b - a, wall, (a + b) // 2)
+    return best[1], best[2]
 
 
 class _Timespec(ctypes.Structure):
@@ -73,8 +91,8 @@ class LoopStats:
 
     def __init__(self, keep_all=False):
         """Start with no ticks."""
-        self.overruns = 0               # ticks that skipped steps beyond the catch-up limit
-        self.skipped_steps = 0
+        self.overruns = 0               # ticks (stalls) due more steps than the catch-up limit
+        self.skipped_steps = 0          # steps of those stalls integrated but not published
         self.late_ticks = 0             # ticks at least one period late
         self.catchup_steps = 0
         self.lateness = array.array('q')        # current diagnostics window [ns]

@@ -229,8 +229,8 @@ def stroke_room(params):
 
 
 def nut_speed_limit(params):
-    """Return the nut speed [m/s] of the motor's velocity limit."""
-    return params.velocity_limit * params.lead / (2.0 * math.pi)
+    """Return the nut speed [m/s] of the drive's velocity reference limit (reference_speed_limit)."""
+    return params.reference_speed_limit * params.lead / (2.0 * math.pi)
 
 
 class Builder:
@@ -270,7 +270,8 @@ class Builder:
 
 
 def check_speed(profile, params, speed):
-    """Raise ProfileError if option ``speed`` [m/s] exceeds the nut speed of velocity_limit."""
+    """Raise ProfileError if option ``speed`` [m/s] exceeds the nut speed the drive allows."""
     limit = nut_speed_limit(params)
     if speed > limit:
-        profile.fail('speed', f'exceeds the nut speed of velocity_limit, {limit:g} m/s')
+        profile.fail('speed', f'exceeds the nut speed of velocity_limit and max_screw_velocity, '
+                     f'{limit:g} m/s')

@@ -62,8 +62,10 @@ def _drive_state(p, drive, v, omega, torque):
     if drive == 'velocity' and kv == 0.0:
         raise ParameterError('velocity_gain', '0 N m s/rad: the velocity loop cannot hold a '
                              'speed (give a gain > 0, or use the ideal drive)')
-    if drive == 'velocity' and abs(w_ref) > p.velocity_limit:
-        raise ParameterError('velocity_limit', f'{p.velocity_limit!r} rad/s is below the '
+    if drive == 'velocity' and abs(w_ref) > p.reference_speed_limit:
+        name = ('velocity_limit' if p.reference_speed_limit == p.velocity_limit
+                else 'max_screw_velocity')
+        raise ParameterError(name, f'{getattr(p, name)!r} rad/s is below the '
                              f'{abs(w_ref):.4g} rad/s reference that {v!r} m/s needs')
     return w_ref, integral
 

@@ -15,9 +15,13 @@ synchronous torque / velocity / position), all in the q sense of layout:
   position mode.
 
 w_ref is clipped to +-velocity_limit in every mode and to 0 toward a tripped
-limit switch. The velocity loop (:func:`velocity_loop`) is a PI with
-conditional integration as anti-windup. A latched fault (following error,
-torque limit, injected) switches the torque off until the model clears it.
+limit switch. A position target further than max_command_jump from the
+reference is approached at the velocity limit (capped by max_screw_velocity)
+instead of being stepped to (stages.take_command). The velocity loop
+(:func:`velocity_loop`) is a PI with conditional integration as anti-windup.
+A latched fault (following error, torque limit, injected, or overspeed: the
+motor faster than OVERSPEED_MARGIN times max_screw_velocity, checked at each
+step's end in every mode) switches the torque off until the model clears it.
 
 This module holds the compiled pieces the kernel calls
 (:func:`update_period`, :func:`velocity_loop`), :func:`prepare_commands`
@@ -33,13 +37,13 @@ import numpy as np
 from ._jit import kernel_jit
 from . import layout as L
 from ..drive_modes import (FAULT_FOLLOWING_ERROR, FAULT_INJECTED, FAULT_NAMES, FAULT_NONE,
-                           FAULT_TORQUE_LIMIT, MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP,
+                           FAULT_OVERSPEED, FAULT_TORQUE_LIMIT, MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP,
                            MODE_TORQUE, MODE_VELOCITY)
 
 #: The drive's functions, and the mode and fault codes of :mod:`..drive_modes` the kernel
 #: reads from here.
 __all__ = ['command_rows', 'effective_rate', 'FAULT_FOLLOWING_ERROR', 'FAULT_INJECTED',
-           'FAULT_NAMES', 'FAULT_NONE', 'FAULT_TORQUE_LIMIT', 'MODE_NAMES', 'MODE_POSITION',
+           'FAULT_NAMES', 'FAULT_NONE', 'FAULT_OVERSPEED', 'FAULT_TORQUE_LIMIT', 'MODE_NAMES', 'MODE_POSITION',
            'MODE_QUICKSTOP', 'MODE_TORQUE', 'MODE_VELOCITY', 'prepare_commands',
            'update_period', 'velocity_loop']
 

@@ -32,7 +32,8 @@ import math
 import numpy as np
 
 from ._jit import kernel_jit, refresh_cache
-from .drive import FAULT_INJECTED, FAULT_NONE, MODE_TORQUE, update_period
+from .drive import (FAULT_INJECTED, FAULT_NONE, FAULT_OVERSPEED, MODE_POSITION, MODE_TORQUE,
+                    update_period)
 from .sensors import sample
 from .impulses import friction_impulses
 from .stepper import (
@@ -49,11 +50,12 @@ from .write_back import (
 )
 from .layout import (
     NO, N_CMD,
-    P_CL, P_DQ0, P_DRATE, P_DSCALE, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT, P_FINJ, P_HOME,
-    P_HYST, P_JAM, P_JAMX, P_LMAX, P_LMIN, P_MUC, P_RCOL, P_SFRZ, P_SIDEAL, P_TAU, P_TMAX,
-    P_STEPPER, P_SWMAX, P_TSCALE, P_VFT,
+    P_CL, P_DJUMP, P_DQ0, P_DRATE, P_DSCALE, P_DSLEW, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT,
+    P_FINJ, P_HOME, P_HYST, P_JAM, P_JAMX, P_LMAX, P_LMIN, P_DQSD, P_MUC, P_OVS, P_RCOL, P_SFRZ,
+    P_SIDEAL, P_TAU, P_TMAX, P_STEPPER, P_SWMAX, P_TSCALE, P_VFT,
     REC_ROW, REC_STATE,
-    S_CMODE, S_CQ, S_CT, S_CW, S_EQ, S_EW, S_HOME, S_JAM, S_NREP, S_NSAMP, S_SWMAX, S_SWMIN,
+    S_CMODE, S_CQ, S_CT, S_CW, S_EQ, S_EW, S_HOME, S_JAM, S_NREP, S_NSAMP, S_QM, S_SWMAX,
+    S_SWMIN,
     S_VS, S_XA, S_XS,
     WK_CMD, WK_FLOAT, WK_INT, WK_IO, WK_NIO, WK_REC,
 )
@@ -158,6 +160,10 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     stepper = P[P_STEPPER] > 0.5
     stc = stepper_constants(P, h)
     s_wmax = P[P_SWMAX]
+    ovs = P[P_OVS]
+    jump = P[P_DJUMP]
+    slew_v = P[P_DSLEW]
+    slew_a = P[P_DQSD]
     n_steps = torques.shape[0] if ncmd == 0 else min(torques.shape[0], ncmd)
     for i in range(n_steps):
         fext = P[P_FEXT] + forces[i]
@@ -175,8 +181,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             jam_side = S[S_JAM]
             if jam_side == 0.0:
                 jam_side = 1.0 if S[S_XA] <= jam_x else -1.0
-        d_mode, d_qref, d_int, d_tlim, d_qs = take_command(c_mode, c_q, d_mode, d_qref, d_int,
-                                                           d_tlim, d_qs)
+        d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs = take_command(
+            c_mode, c_q, d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs, S[S_QM], jump, slew_v,
+            slew_a, dt)
         # limit and home switches, as the end of the last step left them
         sw_min = S[S_SWMIN] > 0.5
         sw_max = S[S_SWMAX] > 0.5
@@ -187,6 +194,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         w_lo = 0.0 if sw_min else -vmax
         w_hi = 0.0 if sw_max else vmax
         w_ff = 0.0 if d_qs != 0 else c_w     # a quick stop and its hold: no feed-forwards
+        if d_mode == MODE_POSITION:
+            w_ff += d_wqs                    # the rate of a reference approaching its target
         t_ff = 0.0 if d_qs != 0 else c_t
         if drive_on:
             t_sat = d_tout
@@ -319,6 +328,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
         # limit and home switches from the true nut position at the end of the step (with
         # hysteresis); they act on the next step
         sw_min, sw_max, home = switch_states(xa, sw_min, sw_max, S[S_HOME] > 0.5, sc)
+        # overspeed: the motor rate at the step's end, in every mode; it acts on the next step
+        if ovs > 0.0 and d_fault == FAULT_NONE and abs(wm) > ovs:
+            d_fault = FAULT_OVERSPEED
         store_drive(S, c_mode, c_q, c_w, c_t, d_mode, d_qref, d_int, d_tout, d_phase, d_fault,
                     d_tlim, d_qs, d_wqs, d_ferr, d_wref, sw_min, sw_max, home, jam_side)
         if stepper:

@@ -113,7 +113,10 @@ P_SWMAX = P_DRATE + 44  # step generator's largest rate [rad/s]
 P_SACC = P_DRATE + 45   # step generator's acceleration [rad/s^2]
 P_BROT = P_DRATE + 46   # rotor viscous damping B [N m s/rad]
 P_SNOENC = P_DRATE + 47  # 1.0: no encoder (joint_states reports the commanded steps)
-NP = P_DRATE + 48       # length of P
+P_OVS = P_DRATE + 48    # overspeed trip: |motor rate| above it latches FAULT_OVERSPEED [rad/s]; 0: off
+P_DJUMP = P_DRATE + 49  # max_command_jump as a motor angle [rad]; 0: off
+P_DSLEW = P_DRATE + 50  # rate of the reference toward a command beyond P_DJUMP [rad/s]
+NP = P_DRATE + 51       # length of P
 
 # State vector S (float64[N_STATE]) --------------------------------------------
 S_QM = 0        # motor angle [rad]

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from ..drive_modes import OVERSPEED_MARGIN
 from . import friction as F
 from . import layout as L
 from . import sensors as SN
@@ -125,7 +126,9 @@ def pack_drive(p, v, q0):
     v[L.P_DKP] = p.position_gain
     v[L.P_DKV] = p.velocity_gain
     v[L.P_DTI] = p.velocity_integral_time
-    v[L.P_DVMAX] = p.velocity_limit
+    # the velocity reference stays within the rated speed: the overspeed trip lies above it
+    v[L.P_DVMAX] = (min(p.velocity_limit, p.max_screw_velocity) if p.max_screw_velocity > 0.0
+                    else p.velocity_limit)
     v[L.P_DQSD] = p.quick_stop_deceleration
     v[L.P_DFEL] = p.following_error_limit
     v[L.P_DTLT] = p.torque_limit_time
@@ -136,6 +139,9 @@ def pack_drive(p, v, q0):
     v[L.P_LMAX] = p.limit_max_position
     v[L.P_HOME] = p.home_position
     v[L.P_HYST] = p.switch_hysteresis
+    v[L.P_OVS] = OVERSPEED_MARGIN * p.max_screw_velocity
+    v[L.P_DJUMP] = p.max_command_jump / abs(v[L.P_RT])
+    v[L.P_DSLEW] = v[L.P_DVMAX]
 
 
 def initial_seating(p, v):

@@ -27,6 +27,8 @@ order, a thread of nut A, b thread of half-nut B, c screw bearing plus
 thrust collar, g nut guide (ids 0, 1, 2, 3); "impulse" is per substep [N s]
 (bearing: [N m s]); modes are stick/slip modes (-1, 0, 1) of the box LCP.
 """
+import math
+
 from ._jit import DISPATCHERS, JIT_OPTIONS, kernel_jit, njit
 from .drive import (
     FAULT_FOLLOWING_ERROR, FAULT_NONE, FAULT_TORQUE_LIMIT, MODE_POSITION, MODE_QUICKSTOP,
@@ -192,12 +194,23 @@ def held_command(S, torques, cmds, i):
 
 
 @kernel_jit
-def take_command(c_mode, c_q, d_mode, d_qref, d_int, d_tlim, d_qs):
+def take_command(c_mode, c_q, d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs, q_now, jump, slew_v,
+                 slew_a, dt):
     """
     Let the held command take effect: a quick stop once, any other mode at once.
 
-    c_mode, c_q: held mode and target [rad]; d_*: the drive state (load_drive).
-    Returns (d_mode, d_qref, d_int, d_tlim, d_qs).
+    c_mode, c_q: held mode and target [rad]; d_*: the drive state (load_drive);
+    q_now: the motor angle [rad]; jump: max_command_jump as a motor angle
+    [rad] (0: off); slew_v [rad/s], slew_a [rad/s^2]: the rate and
+    acceleration of the reference's approach; dt: the step [s].
+
+    A position target within ``jump`` of the reference (of q_now when the
+    drive enters position mode) becomes the reference at once. A farther one
+    is approached by a trapezoidal reference: its rate d_wqs [rad/s] (the
+    quick stop's slot, free in position mode; the kernel adds it to the
+    velocity feed-forward) grows by slew_a dt per step up to slew_v and slows
+    to arrive, so the drive moves there at its limits instead of stepping.
+    Returns (d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs).
     """
     if c_mode == MODE_QUICKSTOP:
         if d_qs == 0:
@@ -206,15 +219,35 @@ def take_command(c_mode, c_q, d_mode, d_qref, d_int, d_tlim, d_qs):
                 d_tlim = 0.0
             d_mode = MODE_QUICKSTOP
             d_qs = 1
-    else:
-        if d_mode == MODE_TORQUE and c_mode != MODE_TORQUE:   # the drive starts afresh
-            d_int = 0.0
-            d_tlim = 0.0
-        d_qs = 0
-        d_mode = c_mode
+        return d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs
+    if d_mode == MODE_TORQUE and c_mode != MODE_TORQUE:   # the drive starts afresh
+        d_int = 0.0
+        d_tlim = 0.0
+    d_qs = 0
+    was = d_mode
+    d_mode = c_mode
+    if c_mode != MODE_POSITION or jump <= 0.0:
+        d_wqs = 0.0
         if c_mode == MODE_POSITION:
             d_qref = c_q
-    return d_mode, d_qref, d_int, d_tlim, d_qs
+        return d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs
+    if was != MODE_POSITION:
+        d_qref = q_now
+        d_wqs = 0.0
+    e = c_q - d_qref
+    if abs(e) <= jump and abs(d_wqs) * dt <= jump:
+        d_qref = c_q
+        d_wqs = 0.0
+    else:
+        cap = min(slew_v, math.sqrt(2.0 * slew_a * abs(e)))
+        want = cap if e > 0.0 else -cap
+        dv = slew_a * dt
+        d_wqs = min(max(want, d_wqs - dv), d_wqs + dv)
+        d_qref += d_wqs * dt
+        if (c_q - d_qref) * e <= 0.0:    # arrived (or passed): the target itself
+            d_qref = c_q
+            d_wqs = 0.0
+    return d_mode, d_qref, d_int, d_tlim, d_qs, d_wqs
 
 
 @kernel_jit
