@@ -95,11 +95,11 @@ class ScrewParams(Schema):
     torque_limit_time: float = field(0.0, 's', 'time the velocity loop output may stay at '
                                      '+-max_torque before a drive fault latches; 0 means off',
                                      0.0, 3600.0)
-    max_screw_velocity: float = field(157.07963267948966, 'rad/s', 'rated screw speed '
-                                      '(1500 rpm), the URDF joint velocity limit; in every '
-                                      'drive mode an overspeed fault latches when the motor '
-                                      'turns faster than OVERSPEED_MARGIN (1.2) times it; 0 '
-                                      'means no limit', 0.0, 1e5)
+    max_screw_velocity: float = field(0.0, 'rad/s', 'rated speed of the axis, the URDF joint '
+                                      'velocity limit: the velocity reference stays within it, '
+                                      'and in every drive mode an overspeed fault latches when '
+                                      'the motor turns faster than 1.2 times it (every preset '
+                                      'sets it); 0 means none', 0.0, 1e5)
     max_command_jump: float = field(0.0, 'm', 'largest nut position command step the drive '
                                     'takes at once: a position command further than this from '
                                     'the reference (or, entering position mode, from the nut) '

@@ -28,8 +28,7 @@ def grid(profile, n=200001):
 
 def nut_speed_limit(p):
     """Return the nut speed [m/s] of the motor velocity limit: omega_max l / (2 pi)."""
-    # the drive keeps its velocity reference within the rated speed max_screw_velocity too
-    return min(p.velocity_limit, p.max_screw_velocity) * p.pitch * p.starts / (2.0 * math.pi)
+    return p.velocity_limit * p.pitch * p.starts / (2.0 * math.pi)
 
 
 @pytest.mark.parametrize('preset', PRESETS)

@@ -257,7 +257,7 @@ def test_hold_series_and_undefined_efficiency():
 def test_figures_of_a_simulate_recording_are_the_closed_forms(tmp_path):
     # The sweep's commands at 1 kHz as simulate's --velocity-csv (zero-order
     # hold: the row at t_k is the command of step k), the recording read with
-    # mcap_ros2: joint_states' screw joint (motor torque, rate) and nut joint,
+    # mcap_ros2: axis/joint_states' screw joint (motor torque, rate) and nut joint,
     # velocity_command at its log time. Fast levels as in the model test.
     from helpers import cli_ok
     from mcap.reader import make_reader
@@ -277,7 +277,7 @@ def test_figures_of_a_simulate_recording_are_the_closed_forms(tmp_path):
     with open(out, 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for _s, c, m, d in reader.iter_decoded_messages(
-                topics=['/velocity_command', '/joint_states']):
+                topics=['/velocity_command', '/axis/joint_states']):
             if c.topic == '/velocity_command':
                 cmd.append((m.log_time * 1e-9, d.data))
             else:

@@ -79,7 +79,8 @@ def test_sliding_velocity_loop_matches_the_linearisation():
     ('torque', 'motor_torque', 0.05, None),
 ])
 def test_every_signal_has_the_linear_models_sign_and_scale(inp, out, amp, mode):
-    p = load_preset('tr12x3', mu_s=0.0, mu_k=0.0, drive_rate=3000.0)
+    # a frictionless axis drifts in torque mode past the preset's overspeed trip: off here
+    p = load_preset('tr12x3', mu_s=0.0, mu_k=0.0, drive_rate=3000.0, max_screw_velocity=0.0)
     sim = simulated_response(p, inp, out, fmin=2.0, fmax=40.0, points=3, amplitudes=[amp],
                              workers=1, mode=mode)[0]
     lin = linear_response(p, inp, out, frequency=sim.frequency, sampling='step', mode=mode)

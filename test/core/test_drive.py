@@ -267,9 +267,7 @@ def test_saturated_step_anti_windup_bounds_the_overshoot():
     y_kernel = angle - theta0
     assert np.abs(torque).max() == pytest.approx(p.max_torque)   # saturated
     hs = p.hand_sign
-    # the reference limit: velocity_limit within the rated speed max_screw_velocity
-    lim = dict(tmax=p.max_torque, vmax=min(p.velocity_limit, p.max_screw_velocity),
-               every=m.nsub)
+    lim = dict(tmax=p.max_torque, vmax=p.velocity_limit, every=m.nsub)
     q_aw, _, i_aw = cascade(j, h, md, n * m.nsub, hs * step, kv, ti, kp, **lim)
     q_wu, _, i_wu = cascade(j, h, md, n * m.nsub, hs * step, kv, ti, kp, aw=False, **lim)
     ov_k, ts_k = step_figures(t, y_kernel, step)

@@ -2,10 +2,10 @@
 The drive's protections against a runaway and a far position command (doc/model.md section 16).
 
 Oracles:
-- the overspeed threshold is 1.2 times the rated speed, 1500 rpm = 50 pi rad/s
-  by default, written out here from the parameter's definition: the fault
-  must latch on the step after the first one whose motor rate exceeds it,
-  and the motor torque must be off from then on;
+- the overspeed threshold is 1.2 times the rated speed, which config/tr12x3.yaml
+  declares as max_screw_velocity: 300 rad/s (the test reads that file with
+  yaml, not through the package): the fault latches at the end of the first
+  step whose motor rate exceeds it, and the motor torque is off from then on;
 - the end stop: without the limit the same torque runs the nut into it;
 - a far position target is approached on a trapezoid of the reference rate
   v = min(velocity_limit, max_screw_velocity) and acceleration a =
@@ -16,15 +16,19 @@ Oracles:
   the run without the limit.
 """
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from leadscrew_sim import LeadScrewModel, load_preset
 from leadscrew_sim.core.engine import drive as D
 
-#: 1500 rpm [rad/s], the default max_screw_velocity, and its overspeed trip.
-RATED = 1500.0 * 2.0 * math.pi / 60.0
+#: The preset's rated speed [rad/s], read from its file, and its overspeed trip.
+RATED = float(yaml.safe_load(
+    (Path(__file__).resolve().parents[2] / 'config' / 'tr12x3.yaml').read_text())
+    ['/**']['ros__parameters']['max_screw_velocity'])
 TRIP = 1.2 * RATED
 
 
@@ -42,11 +46,11 @@ def position_rows(n, theta):
 
 
 def test_overspeed_trips_in_torque_mode_before_the_nut_reaches_the_end_stop():
-    """A torque that runs the axis away latches overspeed at 1.2 x 1500 rpm; torque off."""
+    """A torque that runs the axis away latches overspeed at 1.2 x the rated speed; torque off."""
     p = preset()
     assert p.max_screw_velocity == pytest.approx(RATED, rel=1e-12)
     m = LeadScrewModel(p, dt=1e-3)
-    r = m.run(np.full(3000, 0.6), drive_values=True)     # lowers the nut toward -x
+    r = m.run(np.full(3000, 1.0), drive_values=True)     # lowers the nut toward -x
     w = np.abs(r['motor_velocity'])
     k = int(np.argmax(w > TRIP))
     assert w[k] > TRIP and (w[:k] <= TRIP).all()
@@ -65,7 +69,7 @@ def test_without_the_limit_the_same_torque_crashes_into_the_end_stop():
     """max_screw_velocity 0 (no limit): the nut runs into the stop, no fault."""
     p = preset(max_screw_velocity=0.0)
     m = LeadScrewModel(p, dt=1e-3)
-    r = m.run(np.full(4000, 0.6), drive_values=True)
+    r = m.run(np.full(4000, 1.0), drive_values=True)
     assert m.drive_fault() == D.FAULT_NONE
     assert np.abs(r['motor_velocity']).max() > 2 * TRIP
     assert r['nut_position'].min() < p.stroke_min + 1e-4
@@ -73,11 +77,11 @@ def test_without_the_limit_the_same_torque_crashes_into_the_end_stop():
 
 @pytest.mark.parametrize('mode', ['position', 'velocity'])
 def test_the_loops_keep_below_the_trip(mode):
-    """A 40 mm position step and a velocity command at the rated speed trip nothing."""
+    """A 100 mm position step and a velocity command at the rated speed trip nothing."""
     p = preset()
     m = LeadScrewModel(p, dt=1e-3)
     if mode == 'position':
-        m.command(D.MODE_POSITION, position=m.nut_to_motor(-0.04))
+        m.command(D.MODE_POSITION, position=m.nut_to_motor(-0.1))
     else:
         m.command(D.MODE_VELOCITY, velocity=-RATED)
     w = []
@@ -92,7 +96,7 @@ def test_the_loops_keep_below_the_trip(mode):
 
 def test_a_far_position_command_is_approached_at_the_drives_limits():
     """Beyond max_command_jump the nut moves on the trapezoid D / v + v / a, at the rated speed."""
-    x0, x1 = 0.05, 0.0
+    x0, x1 = 0.1, 0.0
     p = preset(initial_position=x0, max_command_jump=1e-3)
     v = min(p.velocity_limit, RATED)                        # rad/s of the motor
     a = p.quick_stop_deceleration                           # rad/s^2

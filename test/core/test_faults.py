@@ -134,7 +134,8 @@ def test_jammed_position_ramp_latches_the_following_error():
 
 def frozen_move(**changes):
     """Hold a horizontal tr12x3 in position, freeze the encoder, command a 1 rad move; run 600."""
-    p = horizontal(following_error_limit=2.0, **changes)
+    # the runaway would latch the preset's overspeed trip first: off (max_screw_velocity 0)
+    p = horizontal(following_error_limit=2.0, max_screw_velocity=0.0, **changes)
     m = LeadScrewModel(p, dt=DT)
     theta0 = m.output().motor_angle
     m.run(None, commands=rows(D.MODE_POSITION, 300, position=theta0))

@@ -126,9 +126,7 @@ def pack_drive(p, v, q0):
     v[L.P_DKP] = p.position_gain
     v[L.P_DKV] = p.velocity_gain
     v[L.P_DTI] = p.velocity_integral_time
-    # the velocity reference stays within the rated speed: the overspeed trip lies above it
-    v[L.P_DVMAX] = (min(p.velocity_limit, p.max_screw_velocity) if p.max_screw_velocity > 0.0
-                    else p.velocity_limit)
+    v[L.P_DVMAX] = p.reference_speed_limit
     v[L.P_DQSD] = p.quick_stop_deceleration
     v[L.P_DFEL] = p.following_error_limit
     v[L.P_DTLT] = p.torque_limit_time
