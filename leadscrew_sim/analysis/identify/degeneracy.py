@@ -5,7 +5,9 @@ Some parameters act only through an event or a range of the motion: the
 backlash only when the thread contact changes flank (a reversal of the
 load), the static friction only when the thread breaks away from
 standstill or slides slowly in contact (:func:`static_episodes`), the
-kinetic friction only while it slides, and the shape of
+kinetic friction only while it slides, the screw's bearing only while the
+screw turns and the nut's guide only while the nut moves (by more than the
+settling of a still axis), and the shape of
 the friction curve (Stribeck velocity and exponent, viscous slope) only
 when it slides at more than one speed (at a single speed they, the kinetic
 friction and the Coulomb terms add up to one constant torque). A run
@@ -29,6 +31,19 @@ SLIDING = 1e-12
 #: The parameters of the friction curve's shape, which one sliding speed cannot separate.
 SHAPE = ('stribeck_velocity', 'stribeck_exponent', 'mu_viscous')
 
+#: Travel below which a body counts as never having moved: the settling of a still axis
+#: within its contact compliance (nanometres) moves the nut and the screw, yet shows no
+#: friction law. Nut [m]: a micron, below a lead screw axis's positioning resolution;
+#: screw [rad]: 1e-3 rad, below a count of a 4096-count encoder.
+MOVED_NUT, MOVED_SCREW = 1e-6, 1e-3
+
+#: The parameters of the screw's bearing and the nut's guide, and the column whose travel
+#: shows each: they act only while that body moves.
+BODIES = (('screw_velocity', MOVED_SCREW, 'rad', 'the screw never turned',
+           ('bearing_coulomb', 'bearing_viscous')),
+          ('nut_velocity', MOVED_NUT, 'm', 'the nut never moved',
+           ('guide_coulomb', 'guide_viscous')))
+
 
 def motion_degeneracies(cols, curve=None):
     """
@@ -47,6 +62,11 @@ def motion_degeneracies(cols, curve=None):
 
     """
     out = {}
+    for key, least, unit, why, names in BODIES:
+        travel = _travel(cols, key)
+        if travel is not None and travel < least:
+            for name in names:
+                out[name] = f'{why} (it travelled {travel:.3g} {unit}, less than {least:g} {unit})'
     contact = np.asarray(cols['contact'])
     if len(np.unique(contact[contact != 0])) < 2:
         out['backlash'] = ('the load never reverses: the thread contact never changed '
@@ -70,6 +90,15 @@ def motion_degeneracies(cols, curve=None):
                          f'{100 * share:.3g} % of its sliding steps): the friction curve\'s '
                          'shape needs more than one')
     return out
+
+
+def _travel(cols, key):
+    """Return the path [unit of the rate x s] a body's rate column ``key`` covers, or None."""
+    if key not in cols or 'time' not in cols or len(cols['time']) < 2:
+        return None
+    rate = np.abs(np.asarray(cols[key], dtype=float))
+    dt = np.diff(np.asarray(cols['time'], dtype=float))
+    return float(np.sum(rate[1:] * dt))
 
 
 #: Least weight of the static friction in the Stribeck law, exp(-(v / v_s)^delta), at which
