@@ -2,7 +2,7 @@
 import argparse
 import sys
 
-from ..offline.foreign.mapping import COMMAND_KINDS
+from ..offline.foreign.mapping import COMMAND_KINDS, KIND_ALIASES
 from ..offline.options import RunError
 
 PROG = 'leadscrew_sim'
@@ -66,17 +66,22 @@ def add_mapping_arguments(p, step_rate_dest='step_rate'):
     g.add_argument('--screw-joint', help='joint name of the screw (motor) in the states '
                    '[rad, rad/s, N m]')
     g.add_argument('--nut-joint', help='joint name of the nut in the states [m, m/s, N]')
-    g.add_argument('--command-topic', help='command topic: std_msgs/Float64, '
-                   'std_msgs/Float64MultiArray, sensor_msgs/JointState or '
-                   'trajectory_msgs/JointTrajectory')
-    g.add_argument('--command-kind', choices=COMMAND_KINDS,
+    g.add_argument('--command-topic', action='append',
+                   help='command topic: std_msgs/Float64, std_msgs/Float64MultiArray, '
+                   'sensor_msgs/JointState or trajectory_msgs/JointTrajectory; repeat it for '
+                   'the topics of several controllers (the latest command acts)')
+    g.add_argument('--command-kind', choices=COMMAND_KINDS + tuple(KIND_ALIASES),
+                   action='append',
                    help='what a Float64 (or Float64MultiArray entry) command is: motor torque '
-                   '[N m], nut velocity [m/s] or nut position [m]')
-    g.add_argument('--command-index', type=int, metavar='N',
-                   help='entry of a Float64MultiArray command [-] (default 0)')
-    g.add_argument('--command-joint', metavar='NAME',
+                   '[N m], nut velocity [m/s] or nut position [m]; effort (ros2_control\'s '
+                   'interface name) is the motor torque; once for all command topics or once '
+                   'per topic (default: the kind the topic\'s name says)')
+    g.add_argument('--command-index', type=int, metavar='N', action='append',
+                   help='entry of a Float64MultiArray command [-] (default 0); once, or once '
+                   'per command topic')
+    g.add_argument('--command-joint', metavar='NAME', action='append',
                    help='joint of a JointState or JointTrajectory command (default: the nut '
-                   'joint where named, else the screw joint)')
+                   'joint where named, else the screw joint); once, or once per topic')
     g.add_argument('--command-delay', type=float, metavar='S',
                    help='constant delay from a command to its effect [s] (default: estimated)')
     g.add_argument('--step-rate', dest=step_rate_dest, type=float, metavar='HZ',

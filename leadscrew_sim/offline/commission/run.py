@@ -18,6 +18,7 @@ from .context import Context
 from .segments import check_span, find_segments, missing
 from .sources import open_axis
 from ..foreign.mapping import Mapping
+from ..foreign.replay import own_command_specs
 from .stages import backlash, fit, friction, iso230, response, stability, stepper, twin
 from . import html, views
 from ..identify.inputs import start_params
@@ -58,7 +59,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
     t_all = time.perf_counter()
     rec = open_recording(path)
     rec.require_ros2()
-    if rec.record(PARAMS_RECORD) is None and not Mapping.from_args(identify_args).given:
+    if rec.record(PARAMS_RECORD) is None and not Mapping.from_args(identify_args).given \
+            and not own_command_specs(rec):
         raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record and no '
                        'mapping (a bag of another stack needs --command-topic and the joints, '
                        f'or --map FILE.yaml; `leadscrew_sim info {path}` prints the flags '

@@ -23,6 +23,8 @@ delay and acts from the first step that starts at or after then
 (:func:`leadscrew_sim.core.commands.first_step`). A non-finite value is
 counted and skipped, as the node rejects it.
 """
+import copy
+
 import numpy as np
 
 from .mapping import FLOAT64, JOINT_STATE, MULTI_ARRAY, TRAJECTORY
@@ -354,3 +356,73 @@ def _piecewise(t, at, pos, vel):
     if len(t) and mid[-1]:
         last_v = float(slope[-1])
     return out, last_v
+
+
+class CommandSet:
+    """
+    The commands of several topics (a controller switch's): each acts from its time on.
+
+    ros2_control's controller switching leaves the commands of each
+    controller on its own topic; the active one's are the latest. Each topic
+    is read as a :class:`Commands`; on the step grid the command in force is
+    that of the topic whose latest command came last (ties: the later topic
+    in the mapping's order). With one topic it is that topic's commands.
+
+    Attributes
+    ----------
+    parts : list of Commands
+    topic : str
+        The topics, comma-separated (for messages).
+    ctype : str
+        Their types, comma-separated.
+
+    """
+
+    def __init__(self, parts):
+        """Hold the decoded ``parts``, one per topic."""
+        self.parts = list(parts)
+        self.topic = ', '.join(p.topic for p in self.parts)
+        self.ctype = ', '.join(p.ctype for p in self.parts)
+        self.times = np.sort(np.concatenate([p.times for p in self.parts]))
+        self.skipped = sum(p.skipped for p in self.parts)
+        self.kind = self.parts[0].kind if len(self.parts) == 1 else 'several'
+        self.role = next((p.role for p in self.parts if p.role is not None), None)
+
+    def by_kind(self, nut_map, delay_ns=0):
+        """Return {kind: (times [ns], values)} of every topic's commands, in time order."""
+        out = {}
+        for p in self.parts:
+            for k, (ts, vs) in p.by_kind(nut_map, delay_ns).items():
+                a, b = out.get(k, (np.zeros(0, np.int64), np.zeros(0)))
+                out[k] = (np.concatenate([a, ts]), np.concatenate([b, vs]))
+        for k, (ts, vs) in out.items():
+            order = np.argsort(ts, kind='stable')
+            out[k] = (ts[order], vs[order])
+        return out
+
+    def rate(self):
+        """Return the fastest topic's median command rate [Hz]."""
+        return max(p.rate() for p in self.parts)
+
+    def span(self):
+        """Return (first, last) time any topic's commands set [ns]."""
+        spans = [p.span() for p in self.parts]
+        return min(a for a, _b in spans), max(b for _a, b in spans)
+
+    def rows(self, t0, dt_ns, n, hold, delay_ns, start=None):
+        """Return the drive commands (n, 4) of the grid: each step the latest topic's row."""
+        if len(self.parts) == 1:
+            return self.parts[0].rows(t0, dt_ns, n, hold, delay_ns, start)
+        rows = np.empty((n, 4))
+        rows[:] = (MODE_TORQUE, _NAN, _NAN, 0.0)
+        latest = np.full(n, -1, dtype=np.int64)     # time of the command in force [ns]
+        steps = np.arange(n)
+        for p in self.parts:        # each topic through its own copy of the node's rules
+            mine = p.rows(t0, dt_ns, n, copy.deepcopy(hold), delay_ns, start)
+            ks = first_step(p.times + delay_ns, t0, dt_ns)
+            idx = np.searchsorted(ks, steps, side='right') - 1
+            t_in_force = np.where(idx >= 0, p.times[np.maximum(idx, 0)], -1)
+            take = (idx >= 0) & (t_in_force >= latest)
+            rows[take] = mine[take]
+            latest[take] = t_in_force[take]
+        return rows

@@ -16,6 +16,10 @@ from ..options import RunError
 #: What a scalar command is: motor torque [N m], nut velocity [m/s], nut position [m].
 COMMAND_KINDS = ('torque', 'velocity', 'position')
 
+#: ros2_control's command interface names, taken for the kinds: an ``effort`` command of
+#: the screw joint is the motor torque.
+KIND_ALIASES = {'effort': 'torque'}
+
 #: The command types read, and the state type.
 FLOAT64 = 'std_msgs/msg/Float64'
 MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
@@ -39,11 +43,18 @@ class Mapping:
     screw_joint, nut_joint : str
         Joint names of the screw (motor; rad, rad/s, N m) and of the nut
         (m, m/s, N) in the states.
-    command_topic : str
-        The command topic (a type of :data:`COMMAND_TYPES`).
+    command_topic : str or list of str
+        The command topic (a type of :data:`COMMAND_TYPES`), or several: the
+        topics of ros2_control's controllers a switch leaves in one recording
+        (effort for the breakaway, velocity for a sweep, position for
+        reversals). Their commands act in the order of their times, the
+        latest one's (the active controller's) in force.
+        ``command_kind``, ``command_index`` and ``command_joint`` then are
+        one value for all of them or a list, one per topic, in their order.
     command_kind : str
         torque, velocity or position: what a Float64 or Float64MultiArray
-        command entry is (motor torque [N m], nut velocity [m/s], nut position [m]).
+        command entry is (motor torque [N m], nut velocity [m/s], nut position [m]);
+        ros2_control's interface name effort is taken for torque.
     command_index : int
         The entry of a Float64MultiArray command [-].
     command_joint : str
@@ -91,6 +102,28 @@ class Mapping:
         out.check()
         return out
 
+    def specs(self):
+        """
+        Return the mapped command topics as [(topic, kind, index, joint)] (one None topic: none).
+
+        A kind not given is read from the topic's name where it says one
+        (position, velocity, effort or torque), as the node's and ros2_control's
+        controllers' topics do.
+        """
+        topics = _as_list(self.command_topic) or [None]
+        per = {}
+        for key in ('command_kind', 'command_index', 'command_joint'):
+            values = _as_list(getattr(self, key))
+            if len(values) > 1 and len(values) != len(topics):
+                raise RunError(f'--{key.replace("_", "-")}: {len(values)} values for '
+                               f'{len(topics)} --command-topic: give one for all or one per '
+                               'topic, in their order')
+            per[key] = values * len(topics) if len(values) == 1 else \
+                (values or [None] * len(topics))
+        kinds = [k if k is not None or t is None else kind_from_name(t)
+                 for t, k in zip(topics, per['command_kind'])]
+        return list(zip(topics, kinds, per['command_index'], per['command_joint']))
+
     @property
     def given(self):
         """Return whether any key is set (the recording is then read as a foreign one)."""
@@ -99,17 +132,27 @@ class Mapping:
 
     def check(self):
         """Raise RunError for a key outside its range."""
-        if self.command_kind is not None and self.command_kind not in COMMAND_KINDS:
-            raise RunError(f"--command-kind {self.command_kind!r}: must be one of "
-                           f"{', '.join(COMMAND_KINDS)}")
-        if self.command_index is not None:
+        kinds = [KIND_ALIASES.get(k, k) for k in _as_list(self.command_kind)]
+        for kind in kinds:
+            if kind is not None and kind not in COMMAND_KINDS:
+                raise RunError(f"--command-kind {kind!r}: must be one of "
+                               f"{', '.join(COMMAND_KINDS)} (or ros2_control's "
+                               f"{', '.join(KIND_ALIASES)})")
+        self.command_kind = _one_or_list(kinds)
+        indexes = []
+        for index in _as_list(self.command_index):
+            if index is None:               # a --map commands entry without one
+                indexes.append(None)
+                continue
             try:
-                self.command_index = int(self.command_index)
+                index = int(index)
             except (TypeError, ValueError):
-                raise RunError(f'--command-index {self.command_index!r}: must be an '
+                raise RunError(f'--command-index {index!r}: must be an '
                                'integer >= 0') from None
-            if self.command_index < 0:
-                raise RunError(f'--command-index {self.command_index}: must be >= 0')
+            if index < 0:
+                raise RunError(f'--command-index {index}: must be >= 0')
+            indexes.append(index)
+        self.command_index = _one_or_list(indexes)
         for key, lo, hi in (('command_delay', -10.0, 10.0), ('step_rate', 1.0, 1e6)):
             v = getattr(self, key)
             if v is None:
@@ -124,19 +167,47 @@ class Mapping:
             setattr(self, key, v)
         for key in ('state_topic', 'screw_joint', 'nut_joint', 'command_topic',
                     'command_joint'):
-            v = getattr(self, key)
-            if v is not None and (not isinstance(v, str) or not v):
-                raise RunError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty name')
+            values = _as_list(getattr(self, key)) if key in ('command_topic', 'command_joint') \
+                else [getattr(self, key)]
+            for v in values:
+                if v is not None and (not isinstance(v, str) or not v):
+                    raise RunError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty '
+                                   'name')
+            if key in ('command_topic', 'command_joint'):
+                setattr(self, key, _one_or_list(values))
+        self.specs()                # the per-topic lists fit the topics
 
     def flags(self):
         """Return the options that give this mapping, for the user to copy."""
         out = []
         for key in self.keys():
-            v = getattr(self, key)
-            if v is not None:
+            for v in _as_list(getattr(self, key)):
                 out.append(f'--{key.replace("_", "-")} {v:g}' if isinstance(v, float)
                            else f'--{key.replace("_", "-")} {v}')
         return ' '.join(out)
+
+
+def _as_list(value):
+    """Return ``value`` as a list: [] for None, itself for a list or tuple, else [value]."""
+    if value is None:
+        return []
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def _one_or_list(values):
+    """Return None, the one value, or the list of several."""
+    return None if not values else values[0] if len(values) == 1 else list(values)
+
+
+#: Name parts that say a command's kind, in the order they are looked for.
+KIND_HINTS = (('position', 'position'), ('velocity', 'velocity'), ('effort', 'torque'),
+              ('torque', 'torque'))
+
+
+def kind_from_name(topic):
+    """Return the command kind a topic's name says (``/velocity_controller/commands``), or None."""
+    low = topic.lower()
+    return next((k for h, k in KIND_HINTS if h in low), None)
 
 
 def read_map_file(path):
@@ -151,8 +222,17 @@ def read_map_file(path):
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise RunError(f'--map {path}: expected a mapping of keys ({", ".join(Mapping.keys())})')
+        raise RunError(f'--map {path}: expected a mapping of keys ({", ".join(Mapping.keys())}, '
+                       'or commands: a list of topic, kind, index, joint)')
     out = {}
+    if isinstance(data.get('commands'), list):     # commands: [{topic: .., kind: ..}, ...]
+        entries = data.pop('commands')
+        for field in ('topic', 'kind', 'index', 'joint'):
+            values = [e.get(field) if isinstance(e, dict) else None for e in entries]
+            if field == 'topic' and not all(values):
+                raise RunError(f'--map {path}: every entry of commands needs a topic')
+            if any(v is not None for v in values):
+                out[f'command_{field}'] = values
     for key, value in data.items():
         name = str(key).lstrip('-').replace('-', '_')
         if name not in Mapping.keys():

@@ -14,15 +14,18 @@ order dt^4 times the fourth derivative, far below any encoder's noise at
 by up to half a step times the velocity (10 mrad at 20 rad/s and 1 kHz),
 more than a fine encoder's noise.
 """
+import dataclasses
+
 import numpy as np
 
 from . import delay as D
-from .commands import Commands
-from .mapping import DEFAULT_STEP_RATE, JOINT_STATE, Mapping
+from .commands import Commands, CommandSet
+from .mapping import COMMAND_TYPES, DEFAULT_STEP_RATE, JOINT_STATE, Mapping
 from .states import COLUMNS, States
 from ..options import NS, RunError
 from ...core.commands import CommandHold, NutMap
 from ...core.params import ParameterError, ScrewParams
+from ...io.topics import graph_name
 
 #: Slope column of each position column (model.run names).
 SLOPES = {'sensor_screw_angle': 'motor_velocity', 'sensor_nut_position': 'nut_velocity',
@@ -32,8 +35,42 @@ SLOPES = {'sensor_screw_angle': 'motor_velocity', 'sensor_nut_position': 'nut_ve
 OFFSET_SIGNALS = ('screw_angle',)
 
 
+#: The node's own command topics and their kinds (None: a JointState, the node's mode rule).
+OWN_COMMANDS = (('torque_command', 'torque'), ('velocity_command', 'velocity'),
+                ('position_command', 'position'), (graph_name('joint_commands'), None))
+
+
+def own_command_specs(rec):
+    """
+    Return the mapping specs of the node's own command topics that carry messages.
+
+    A ``ros2 bag record`` of the node holds its topics under their names, but
+    not its parameters record: its commands are those of its command topics,
+    of the kinds their names say, the latest in force.
+    """
+    found = []
+    for name, kind in OWN_COMMANDS:
+        for topic, ty in rec.topic_types.items():
+            if (topic == '/' + name or topic.endswith('/' + name)) and ty in COMMAND_TYPES:
+                found.append(topic)
+    if not found:
+        return []
+    arrays = rec.topic_arrays(found)
+    kinds = dict(OWN_COMMANDS)
+    out = []
+    for topic in found:
+        if len(arrays[topic].log_times):
+            name = next(n for n, _k in OWN_COMMANDS if topic.endswith(n))
+            out.append((topic, kinds[name], None, None))
+    return out
+
+
 def find_topic(rec, name, option):
-    """Return the recorded topic ``name`` (relative names match any namespace)."""
+    """Return the recorded topic ``name`` (relative names match any namespace; ours first)."""
+    ours = graph_name(name.lstrip('/'))
+    for topic in rec.topic_types:       # the node's own name (axis/joint_states) first
+        if ours != name.lstrip('/') and (topic == '/' + ours or topic.endswith('/' + ours)):
+            return topic
     for topic in rec.topic_types:
         if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
             return topic
@@ -82,12 +119,14 @@ class ForeignReplay:
         if stype != JOINT_STATE:
             raise RunError(f'--state-topic {self.state_topic}: type {stype!r}, expected '
                            f'{JOINT_STATE}')
-        if m.command_topic is None:
+        specs = m.specs() if m.command_topic is not None else own_command_specs(rec)
+        if not specs:
             raise RunError('--command-topic: a foreign recording needs the command topic '
                            f'(`leadscrew_sim info {rec.path}` lists the topics and the '
                            'mapping flags that fit)')
-        self.command_topic = find_topic(rec, m.command_topic, '--command-topic')
-        arrays = rec.topic_arrays([self.state_topic, self.command_topic])
+        topics = [find_topic(rec, t, '--command-topic') for t, _k, _i, _j in specs]
+        self.command_topic = ', '.join(topics)
+        arrays = rec.topic_arrays([self.state_topic] + topics)
         self.joints = (m.screw_joint or 'screw_joint', m.nut_joint or 'nut_joint')
         names = _state_names(arrays[self.state_topic])
         screw = self.joints[0] if (m.screw_joint or self.joints[0] in names) else None
@@ -96,8 +135,12 @@ class ForeignReplay:
             raise RunError(f'--screw-joint/--nut-joint: the states on {self.state_topic} name '
                            f'{", ".join(names) or "no joint"}; give the screw or the nut joint')
         self.states = States(self.state_topic, arrays[self.state_topic], screw, nut, rec.path)
-        self.commands = Commands(self.command_topic, rec.topic_types.get(self.command_topic),
-                                 arrays[self.command_topic], m, self.joints, rec.path)
+        self.commands = CommandSet(
+            Commands(t, rec.topic_types.get(t), arrays[t],
+                     dataclasses.replace(m, command_topic=t, command_kind=kind,
+                                         command_index=index, command_joint=joint),
+                     self.joints, rec.path)
+            for t, (_t, kind, index, joint) in zip(topics, specs))
         first, last = self.commands.span()
         s0, s1 = int(self.states.stamps[0]), int(self.states.stamps[-1])
         if s1 < first or s0 > last + 10 * NS:
@@ -183,8 +226,9 @@ class ForeignReplay:
             model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
             hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
             start = None
-            if self.commands.kind == 'trajectory':
-                name = 'nut_position' if self.commands.role == 'nut' else 'screw_angle'
+            traj = next((p for p in self.commands.parts if p.kind == 'trajectory'), None)
+            if traj is not None:
+                name = 'nut_position' if traj.role == 'nut' else 'screw_angle'
                 v = self.states.values.get(name)
                 start = float(v[np.isfinite(v)][0]) if v is not None and \
                     np.isfinite(v).any() else None

@@ -12,6 +12,7 @@ import numpy as np
 from .mapping import COMMAND_TYPES, FLOAT64, JOINT_STATE, MULTI_ARRAY, TRAJECTORY
 from ..options import NS
 from ...io import cdr as C
+from ...io.topics import graph_name, TOPIC_SPECS
 
 #: Name parts that suggest a joint's role.
 SCREW_HINTS = ('screw', 'motor', 'rev', 'rot', 'spindle')
@@ -30,11 +31,19 @@ def _role(name):
     return None
 
 
+def is_state_topic(topic):
+    """Return whether ``topic`` is one of leadscrew_sim's state topics (in any namespace)."""
+    return any(topic == '/' + graph_name(k) or topic.endswith('/' + graph_name(k))
+               for k, (_t, role, _q) in TOPIC_SPECS.items() if role in ('state', 'switch'))
+
+
 def foreign_lines(rec):
     """Return the lines that describe a foreign recording's topics for the mapping."""
     joint_topics = [t for t, ty in sorted(rec.topic_types.items()) if ty == JOINT_STATE]
-    command_topics = [t for t, ty in sorted(rec.topic_types.items()) if ty in COMMAND_TYPES
-                      and ty != JOINT_STATE or (ty == JOINT_STATE and 'command' in t)]
+    # a state (the node's nut_position is a Float64 too) is never proposed as a command
+    command_topics = [t for t, ty in sorted(rec.topic_types.items())
+                      if not is_state_topic(t) and (ty in COMMAND_TYPES and ty != JOINT_STATE
+                                                    or (ty == JOINT_STATE and 'command' in t))]
     arrays = rec.topic_arrays(joint_topics + [t for t in command_topics
                                               if t not in joint_topics])
     lines, states = [], {}
@@ -97,6 +106,7 @@ def foreign_lines(rec):
     if not commands:
         lines.append(f'  {base} --command-topic TOPIC   (no command topic of a type read: '
                      f'{", ".join(COMMAND_TYPES)})')
+    several = []
     for topic, ty, first in commands:
         kind = next((k for h, k in KIND_HINTS if h in topic.lower()), None)
         extra = ''
@@ -111,4 +121,8 @@ def foreign_lines(rec):
             joint = nut if nut in cnames else screw if screw in cnames else None
             extra = f' --command-joint {joint}' if joint else ' --command-joint NAME'
         lines.append(f'  {base} --command-topic {topic}{extra}')
+        several.append(f' --command-topic {topic}{extra}')
+    if len(several) > 1:
+        lines.append('  all of them (the controllers a switch leaves; the latest command acts):')
+        lines.append(f'  {base}{"".join(several)}')
     return lines
