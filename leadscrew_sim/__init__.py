@@ -21,8 +21,10 @@ The physics core can be used as a plain Python library::
 
 The names below are imported on first use, so that a process that needs only
 one layer (the recorder process needs only ``io``) does not load numba.
+Every error the package raises derives from ``leadscrew_sim.LeadscrewError``
+(:mod:`leadscrew_sim.core.errors` lists them).
 """
-__all__ = ['LeadScrewModel', 'StepOutput', 'ParameterError', 'ScrewParams',
+__all__ = ['LeadScrewModel', 'LeadscrewError', 'StepOutput', 'ParameterError', 'ScrewParams',
            'SimulationFault', 'load_preset', 'preset_names']
 
 

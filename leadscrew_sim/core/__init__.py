@@ -11,7 +11,7 @@ import importlib
 _WHERE = {
     'LeadScrewModel': 'model', 'StepOutput': 'output', 'ParameterError': 'fields',
     'ScrewParams': 'params', 'SimulationFault': 'faults', 'load_preset': 'presets',
-    'preset_names': 'presets',
+    'preset_names': 'presets', 'LeadscrewError': 'errors',
 }
 
 __all__ = sorted(_WHERE)

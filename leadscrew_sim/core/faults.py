@@ -1,7 +1,10 @@
 """The one error type of a failed integration."""
 
 
-class SimulationFault(FloatingPointError):
+from .errors import LeadscrewError
+
+
+class SimulationFault(LeadscrewError, FloatingPointError):
     """
     The integration met a non-finite state and stopped; the state is the one before the step.
 

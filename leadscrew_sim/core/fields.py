@@ -10,6 +10,7 @@ whose message names the parameter, the value and the allowed range.
 import dataclasses
 import inspect
 import math
+from .errors import LeadscrewError
 
 
 #: Field name prefixes that stand for a parameter namespace: the field ``fault_jam`` is
@@ -44,7 +45,7 @@ def flatten(values):
     return out
 
 
-class ParameterError(ValueError):
+class ParameterError(LeadscrewError, ValueError):
     """An invalid parameter value or an inconsistent parameter set."""
 
     def __init__(self, name, message):

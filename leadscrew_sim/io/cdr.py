@@ -10,6 +10,7 @@ from a byte :class:`Template` with the stamp and doubles patched in.
 import struct
 
 import numpy as np
+from ..core.errors import LeadscrewError
 
 NS = 1_000_000_000
 
@@ -227,7 +228,7 @@ def encode_float64(value):
 # Decoding (fixed layouts; plain CDR, either endianness)
 # ---------------------------------------------------------------------------
 
-class DecodeError(ValueError):
+class DecodeError(LeadscrewError, ValueError):
     """Bytes that are not a valid CDR message of the expected type."""
 
 

@@ -22,6 +22,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from ..core.presets import package_data_dirs
+from ..core.errors import LeadscrewError
 
 #: The package's robot description, in ``urdf/`` of the source tree and the share directory.
 XACRO_FILE = 'leadscrew_axis.urdf.xacro'
@@ -48,7 +49,7 @@ __all__ = ['DescriptionError', 'Joint', 'JointTree', 'NUT_JOINT', 'SCREW_JOINT',
            'XACRO_FROM_PARAMETERS', 'render_urdf', 'xacro_args', 'xacro_dirs', 'xacro_path']
 
 
-class DescriptionError(RuntimeError):
+class DescriptionError(LeadscrewError, RuntimeError):
     """The robot description cannot be rendered (no xacro, no xacro file, a xacro error)."""
 
 

@@ -33,6 +33,7 @@ from foxglove import Channel, Context, Schema
 from foxglove.websocket import Capability, ServerListener
 
 from .msgdefs import ros2msg_definition
+from ..core.errors import LeadscrewError
 
 __all__ = ['BACKLOG', 'LiveServer', 'MAX_CLIENT_MESSAGE', 'QUEUE_SIZE', 'ServeError']
 
@@ -51,7 +52,7 @@ _SDK_LINES = (('Invalid message', 'bad_frames'),
               ('outbox for client', 'outbox_full_reports'))
 
 
-class ServeError(OSError):
+class ServeError(LeadscrewError, OSError):
     """The server cannot start (the port is in use, a bad address); the message is one line."""
 
 

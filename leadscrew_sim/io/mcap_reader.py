@@ -19,6 +19,7 @@ from .mcap_scan import MAX_CHUNK_BYTES, scan
 from .mcap_writer import MAGIC
 from .run_file import PARAMS_RECORD
 from .topics import graph_name, TOPIC_SPECS
+from ..core.errors import LeadscrewError
 
 __all__ = ['Recording', 'RecordingError', 'TopicArrays']
 
@@ -51,7 +52,7 @@ class _Bounded:
         return getattr(self._fh, name)
 
 
-class RecordingError(ValueError):
+class RecordingError(LeadscrewError, ValueError):
     """A file that is missing, not MCAP, truncated, corrupt or of the wrong kind."""
 
 

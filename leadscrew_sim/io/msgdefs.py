@@ -25,6 +25,7 @@ import struct
 import sys
 
 from .cdr import padding
+from ..core.errors import LeadscrewError
 
 PRIMITIVE_TYPES = frozenset((
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
@@ -77,7 +78,7 @@ _TYPE_RE = re.compile(rf'^({_NAME})/(?:msg/)?({_NAME})$')
 _FIELD_TYPE_RE = re.compile(r'^([A-Za-z0-9_/]+)(?:<=\d+)?(?:\[[^\]]*\])?$')
 
 
-class DefinitionNotFoundError(LookupError):
+class DefinitionNotFoundError(LeadscrewError, LookupError):
     """No installed ``.msg`` file for a message type."""
 
 

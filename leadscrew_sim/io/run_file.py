@@ -23,6 +23,7 @@ from ..core import fields
 from ..core.commands import COMMAND_LOG_TIME
 from ..core.params import ScrewParams
 from ..core.settings import RunSettings
+from ..core.errors import LeadscrewError
 
 #: Metadata record of the parameters of a run (written at its start).
 PARAMS_RECORD = 'leadscrew_sim_parameters'
@@ -60,7 +61,7 @@ __all__ = ['CLEAR_FAULT_RECORD', 'CLI_RECORD', 'DESCRIPTION_TOPICS', 'PARAMS_REC
            'params_from_record', 'parameters_record', 'run_setting']
 
 
-class RunFileError(OSError):
+class RunFileError(LeadscrewError, OSError):
     """A run file cannot be created or written; the message is one line."""
 
 

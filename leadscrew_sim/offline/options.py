@@ -21,13 +21,14 @@ from ..core.params import ParameterError, ScrewParams
 from ..core.presets import load_preset, physics_subset, read_parameter_file
 from ..io.mcap_reader import Recording
 from ..io.rosbag2 import BagRecording, is_bag
+from ..core.errors import LeadscrewError
 
 #: Nanoseconds per second.
 NS = 1_000_000_000
 DEFAULT_PRESET = 'tr12x3'
 
 
-class RunError(Exception):
+class RunError(LeadscrewError):
     """A user-facing error of an offline run: printed as one line, exit status 1."""
 
 

@@ -18,6 +18,7 @@ import time
 
 from ..analysis.excitation.base import KIND_TOPICS
 from ..io.topics import resolve, TOPIC_SPECS
+from ..core.errors import LeadscrewError
 
 __all__ = ['ExciteError', 'Exciter']
 
@@ -28,7 +29,7 @@ SETTLE_S = 0.25
 ACK_TIMEOUT_S = 5.0
 
 
-class ExciteError(RuntimeError):
+class ExciteError(LeadscrewError, RuntimeError):
     """A failure of the exciter the user can act on (no subscriber, bad namespace)."""
 
 

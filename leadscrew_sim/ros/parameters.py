@@ -18,6 +18,7 @@ from ..core import load_preset, ParameterError, ScrewParams
 from ..core.fields import field_name, public_name
 from ..core.presets import preset_label
 from ..core.settings import RunSettings
+from ..core.errors import LeadscrewError
 
 __all__ = ['check_drive_interface', 'declare_live_view', 'DEFAULT_PRESET', 'declare_parameters',
            'descriptor',
@@ -36,7 +37,7 @@ OTHER_PARAMETERS = frozenset(('preset', 'use_sim_time', 'start_type_description_
                               *LIVE_VIEW_PARAMETERS))
 
 
-class StartupError(Exception):
+class StartupError(LeadscrewError):
     """An invalid configuration found while the node starts (exit code 2)."""
 
 

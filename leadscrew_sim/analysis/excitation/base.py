@@ -229,7 +229,7 @@ def stroke_room(params):
 
 
 def nut_speed_limit(params):
-    """Return the nut speed [m/s] of the drive's velocity reference limit (reference_speed_limit)."""
+    """Return the nut speed [m/s] of the drive's reference limit (reference_speed_limit)."""
     return params.reference_speed_limit * params.lead / (2.0 * math.pi)
 
 

@@ -17,6 +17,7 @@ times), :data:`SEGMENTS_RECORD` its name.
 import bisect
 
 from .base import KIND_TOPICS, ProfileError, UNITS
+from .singles import PROFILES
 
 __all__ = ['COMMISSION', 'Commission', 'PART_ORDER', 'SEGMENTS_FORMAT', 'SEGMENTS_RECORD']
 
@@ -56,7 +57,6 @@ class Commission:
 
     def __init__(self, params, iso230=None, gap=None):
         """Build the parts from the axis's defaults."""
-        from .profiles import make_profile
         self.params = params
         self.options = {'iso230': self._check('iso230', 0 if iso230 is None else iso230),
                         'gap': self._check('gap', 0.5 if gap is None else gap)}
@@ -65,9 +65,9 @@ class Commission:
             names.remove('breakaway')
         self.parts, t = [], 0.0
         for n in names:
-            p = make_profile(n, params)
+            p = PROFILES[n](params)
             if n == 'chirp' and p.duration > CHIRP_MAX + 1.0:
-                p = make_profile(n, params, duration=CHIRP_MAX)    # fmin stays the default
+                p = PROFILES[n](params, duration=CHIRP_MAX)    # fmin stays the default
             self.parts.append((n, t, p))
             t += p.duration + self.options['gap']
         self.duration = t - self.options['gap']

@@ -32,17 +32,14 @@ this module names them all.
 """
 from .base import ProfileError, Segment
 from .breakaway import BreakawayRamp, static_breakaway
-from .broadband import BROADBAND
 from .commission import COMMISSION
 from .positioning import Iso230, Reversals
+from .singles import PROFILES
 from .sweep import SpeedSweep
 
 __all__ = ['ALL_PROFILES', 'PROFILES', 'ProfileError', 'Segment', 'make_profile', 'BreakawayRamp',
            'SpeedSweep', 'Reversals', 'Iso230', 'static_breakaway']
 
-#: Profile name -> class: the single profiles and the broadband ones.
-PROFILES = dict({cls.name: cls for cls in (BreakawayRamp, SpeedSweep, Reversals, Iso230)},
-                **BROADBAND)
 #: Every name ``make_profile`` builds: the single profiles and the chained commission run
 #: (not a single profile: a part per command kind).
 ALL_PROFILES = dict(PROFILES, **COMMISSION)

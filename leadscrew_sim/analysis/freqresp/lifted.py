@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .linear import zoh
+from .discrete import zoh
 
 __all__ = ['block_ratio', 'lifted_response']
 

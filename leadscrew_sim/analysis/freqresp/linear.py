@@ -35,10 +35,11 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.linalg import eigvals, expm
+from scipy.linalg import eigvals
 
 from ...core.drive_control import drive_period
 from ...core.params import ParameterError
+from .discrete import zoh
 from .plant import plant
 
 __all__ = ['closed_loop', 'ClosedLoop', 'INPUTS', 'LinearSystem', 'LOOPS', 'MODES', 'OUTPUTS',
@@ -109,16 +110,6 @@ def _to_s(z, period):
         return z
     z = z[np.abs(z) > 0.0]
     return np.log(z.astype(complex)) / period
-
-
-def zoh(a, b, t):
-    """Return (Phi, Gamma) = (e^(A t), integral_0^t e^(A s) ds B) for a held input (B: (n, m))."""
-    n, m = b.shape
-    big = np.zeros((n + m, n + m))
-    big[:n, :n] = a * t
-    big[:n, n:] = b * t
-    e = expm(big)
-    return e[:n, :n], e[:n, n:]
 
 
 def _check(name, value, allowed):

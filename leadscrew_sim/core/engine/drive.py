@@ -37,14 +37,14 @@ import numpy as np
 from ._jit import kernel_jit
 from . import layout as L
 from ..drive_modes import (FAULT_FOLLOWING_ERROR, FAULT_INJECTED, FAULT_NAMES, FAULT_NONE,
-                           FAULT_OVERSPEED, FAULT_TORQUE_LIMIT, MODE_NAMES, MODE_POSITION, MODE_QUICKSTOP,
-                           MODE_TORQUE, MODE_VELOCITY)
+                           FAULT_OVERSPEED, FAULT_TORQUE_LIMIT, MODE_NAMES, MODE_POSITION,
+                           MODE_QUICKSTOP, MODE_TORQUE, MODE_VELOCITY)
 
 #: The drive's functions, and the mode and fault codes of :mod:`..drive_modes` the kernel
 #: reads from here.
 __all__ = ['command_rows', 'effective_rate', 'FAULT_FOLLOWING_ERROR', 'FAULT_INJECTED',
-           'FAULT_NAMES', 'FAULT_NONE', 'FAULT_OVERSPEED', 'FAULT_TORQUE_LIMIT', 'MODE_NAMES', 'MODE_POSITION',
-           'MODE_QUICKSTOP', 'MODE_TORQUE', 'MODE_VELOCITY', 'prepare_commands',
+           'FAULT_NAMES', 'FAULT_NONE', 'FAULT_OVERSPEED', 'FAULT_TORQUE_LIMIT', 'MODE_NAMES',
+           'MODE_POSITION', 'MODE_QUICKSTOP', 'MODE_TORQUE', 'MODE_VELOCITY', 'prepare_commands',
            'update_period', 'velocity_loop']
 
 

@@ -13,6 +13,10 @@ import math
 from ...core import yamlio
 from ..options import RunError
 
+class MappingError(RunError):
+    """A recording's mapping onto the axis is wrong: the key (option), its value and why."""
+
+
 #: What a scalar command is: motor torque [N m], nut velocity [m/s], nut position [m].
 COMMAND_KINDS = ('torque', 'velocity', 'position')
 
@@ -115,7 +119,7 @@ class Mapping:
         for key in ('command_kind', 'command_index', 'command_joint'):
             values = _as_list(getattr(self, key))
             if len(values) > 1 and len(values) != len(topics):
-                raise RunError(f'--{key.replace("_", "-")}: {len(values)} values for '
+                raise MappingError(f'--{key.replace("_", "-")}: {len(values)} values for '
                                f'{len(topics)} --command-topic: give one for all or one per '
                                'topic, in their order')
             per[key] = values * len(topics) if len(values) == 1 else \
@@ -135,7 +139,7 @@ class Mapping:
         kinds = [KIND_ALIASES.get(k, k) for k in _as_list(self.command_kind)]
         for kind in kinds:
             if kind is not None and kind not in COMMAND_KINDS:
-                raise RunError(f"--command-kind {kind!r}: must be one of "
+                raise MappingError(f"--command-kind {kind!r}: must be one of "
                                f"{', '.join(COMMAND_KINDS)} (or ros2_control's "
                                f"{', '.join(KIND_ALIASES)})")
         self.command_kind = _one_or_list(kinds)
@@ -147,10 +151,10 @@ class Mapping:
             try:
                 index = int(index)
             except (TypeError, ValueError):
-                raise RunError(f'--command-index {index!r}: must be an '
+                raise MappingError(f'--command-index {index!r}: must be an '
                                'integer >= 0') from None
             if index < 0:
-                raise RunError(f'--command-index {index}: must be >= 0')
+                raise MappingError(f'--command-index {index}: must be >= 0')
             indexes.append(index)
         self.command_index = _one_or_list(indexes)
         for key, lo, hi in (('command_delay', -10.0, 10.0), ('step_rate', 1.0, 1e6)):
@@ -162,7 +166,7 @@ class Mapping:
             except (TypeError, ValueError):
                 v = math.nan
             if not (math.isfinite(v) and lo <= v <= hi):
-                raise RunError(f'--{key.replace("_", "-")} {getattr(self, key)!r}: must lie '
+                raise MappingError(f'--{key.replace("_", "-")} {getattr(self, key)!r}: must lie '
                                f'in [{lo:g}, {hi:g}] {"s" if key == "command_delay" else "Hz"}')
             setattr(self, key, v)
         for key in ('state_topic', 'screw_joint', 'nut_joint', 'command_topic',
@@ -171,7 +175,7 @@ class Mapping:
                 else [getattr(self, key)]
             for v in values:
                 if v is not None and (not isinstance(v, str) or not v):
-                    raise RunError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty '
+                    raise MappingError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty '
                                    'name')
             if key in ('command_topic', 'command_joint'):
                 setattr(self, key, _one_or_list(values))
@@ -216,13 +220,13 @@ def read_map_file(path):
         with open(path, encoding='utf-8') as fh:
             data = yamlio.load(fh)
     except OSError as exc:
-        raise RunError(f'--map {path}: {exc.strerror or exc}') from None
+        raise MappingError(f'--map {path}: {exc.strerror or exc}') from None
     except yamlio.YAMLError as exc:
-        raise RunError(f'--map {path}: cannot parse YAML: {str(exc).splitlines()[0]}') from None
+        raise MappingError(f'--map {path}: cannot parse YAML: {str(exc).splitlines()[0]}') from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise RunError(f'--map {path}: expected a mapping of keys ({", ".join(Mapping.keys())}, '
+        raise MappingError(f'--map {path}: expected a mapping of keys ({", ".join(Mapping.keys())}, '
                        'or commands: a list of topic, kind, index, joint)')
     out = {}
     if isinstance(data.get('commands'), list):     # commands: [{topic: .., kind: ..}, ...]
@@ -230,13 +234,13 @@ def read_map_file(path):
         for field in ('topic', 'kind', 'index', 'joint'):
             values = [e.get(field) if isinstance(e, dict) else None for e in entries]
             if field == 'topic' and not all(values):
-                raise RunError(f'--map {path}: every entry of commands needs a topic')
+                raise MappingError(f'--map {path}: every entry of commands needs a topic')
             if any(v is not None for v in values):
                 out[f'command_{field}'] = values
     for key, value in data.items():
         name = str(key).lstrip('-').replace('-', '_')
         if name not in Mapping.keys():
-            raise RunError(f'--map {path}: unknown key {key!r} (keys: '
+            raise MappingError(f'--map {path}: unknown key {key!r} (keys: '
                            f'{", ".join(Mapping.keys())})')
         out[name] = value
     return out

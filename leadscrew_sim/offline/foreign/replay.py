@@ -21,6 +21,7 @@ import numpy as np
 from . import delay as D
 from .commands import Commands, CommandSet
 from .mapping import COMMAND_TYPES, DEFAULT_STEP_RATE, JOINT_STATE, Mapping
+from .segments import motion_segments
 from .states import COLUMNS, States
 from ..options import NS, RunError
 from ...core.commands import CommandHold, NutMap
@@ -170,7 +171,6 @@ class ForeignReplay:
         first state alone when the recording starts moving): the noise of one
         reading would otherwise shift the twin's start.
         """
-        from .twin import motion_segments
         x = self.states.values.get('nut_position')
         if x is None or not np.isfinite(x).any():
             return None

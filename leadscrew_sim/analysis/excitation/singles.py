@@ -1,0 +1,13 @@
+"""
+The single excitation profiles by name: the parts a chained run (:mod:`.commission`) is made of.
+"""
+from .breakaway import BreakawayRamp
+from .broadband import BROADBAND
+from .positioning import Iso230, Reversals
+from .sweep import SpeedSweep
+
+__all__ = ['PROFILES']
+
+#: Profile name -> class: the single profiles and the broadband ones.
+PROFILES = dict({cls.name: cls for cls in (BreakawayRamp, SpeedSweep, Reversals, Iso230)},
+                **BROADBAND)
