@@ -13,6 +13,7 @@ import math
 from ...core import yamlio
 from ..options import RunError
 
+
 class MappingError(RunError):
     """A recording's mapping onto the axis is wrong: the key (option), its value and why."""
 
@@ -120,8 +121,8 @@ class Mapping:
             values = _as_list(getattr(self, key))
             if len(values) > 1 and len(values) != len(topics):
                 raise MappingError(f'--{key.replace("_", "-")}: {len(values)} values for '
-                               f'{len(topics)} --command-topic: give one for all or one per '
-                               'topic, in their order')
+                                   f'{len(topics)} --command-topic: give one for all or one per '
+                                   'topic, in their order')
             per[key] = values * len(topics) if len(values) == 1 else \
                 (values or [None] * len(topics))
         kinds = [k if k is not None or t is None else kind_from_name(t)
@@ -140,8 +141,8 @@ class Mapping:
         for kind in kinds:
             if kind is not None and kind not in COMMAND_KINDS:
                 raise MappingError(f"--command-kind {kind!r}: must be one of "
-                               f"{', '.join(COMMAND_KINDS)} (or ros2_control's "
-                               f"{', '.join(KIND_ALIASES)})")
+                                   f"{', '.join(COMMAND_KINDS)} (or ros2_control's "
+                                   f"{', '.join(KIND_ALIASES)})")
         self.command_kind = _one_or_list(kinds)
         indexes = []
         for index in _as_list(self.command_index):
@@ -152,7 +153,7 @@ class Mapping:
                 index = int(index)
             except (TypeError, ValueError):
                 raise MappingError(f'--command-index {index!r}: must be an '
-                               'integer >= 0') from None
+                                   'integer >= 0') from None
             if index < 0:
                 raise MappingError(f'--command-index {index}: must be >= 0')
             indexes.append(index)
@@ -166,8 +167,9 @@ class Mapping:
             except (TypeError, ValueError):
                 v = math.nan
             if not (math.isfinite(v) and lo <= v <= hi):
+                unit = 's' if key == 'command_delay' else 'Hz'
                 raise MappingError(f'--{key.replace("_", "-")} {getattr(self, key)!r}: must lie '
-                               f'in [{lo:g}, {hi:g}] {"s" if key == "command_delay" else "Hz"}')
+                                   f'in [{lo:g}, {hi:g}] {unit}')
             setattr(self, key, v)
         for key in ('state_topic', 'screw_joint', 'nut_joint', 'command_topic',
                     'command_joint'):
@@ -176,7 +178,7 @@ class Mapping:
             for v in values:
                 if v is not None and (not isinstance(v, str) or not v):
                     raise MappingError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty '
-                                   'name')
+                                       'name')
             if key in ('command_topic', 'command_joint'):
                 setattr(self, key, _one_or_list(values))
         self.specs()                # the per-topic lists fit the topics
@@ -222,12 +224,14 @@ def read_map_file(path):
     except OSError as exc:
         raise MappingError(f'--map {path}: {exc.strerror or exc}') from None
     except yamlio.YAMLError as exc:
-        raise MappingError(f'--map {path}: cannot parse YAML: {str(exc).splitlines()[0]}') from None
+        raise MappingError(f'--map {path}: cannot parse YAML: '
+                           f'{str(exc).splitlines()[0]}') from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise MappingError(f'--map {path}: expected a mapping of keys ({", ".join(Mapping.keys())}, '
-                       'or commands: a list of topic, kind, index, joint)')
+        raise MappingError(f'--map {path}: expected a mapping of keys '
+                           f'({", ".join(Mapping.keys())}, or commands: a list of topic, kind, '
+                           'index, joint)')
     out = {}
     if isinstance(data.get('commands'), list):     # commands: [{topic: .., kind: ..}, ...]
         entries = data.pop('commands')
@@ -241,6 +245,6 @@ def read_map_file(path):
         name = str(key).lstrip('-').replace('-', '_')
         if name not in Mapping.keys():
             raise MappingError(f'--map {path}: unknown key {key!r} (keys: '
-                           f'{", ".join(Mapping.keys())})')
+                               f'{", ".join(Mapping.keys())})')
         out[name] = value
     return out

@@ -24,7 +24,6 @@ from ...analysis.identify import fit as ident
 from ...core.params import ScrewParams
 
 
-
 @dataclasses.dataclass
 class TwinComparison:
     """
