@@ -8,7 +8,8 @@ tick (DDS delivery), so ``arrival - stamp`` bounds the stamp's error from above:
 its minimum over a window (the fastest delivery: the stamp's offset from the
 clock plus the least transport time) must be below 1 ms, no stamp may lie in
 the future of its arrival, and its lower decile stays within a few ms (on a
-loaded host this process is often late to take a message, which only adds). The stall is real: the process is stopped (SIGSTOP) for 1.5 s.
+loaded host this process is often late to take a message, which only adds).
+The stall is real: the process is stopped (SIGSTOP) for 1.5 s.
 Oracles: the system clock; the recording read by the mcap library (every step
 recorded, one dt apart); ``resim`` reproducing the run bit for bit.
 """
@@ -68,8 +69,9 @@ def test_stamps_stay_on_the_system_clock_through_a_stall(run_exe, ros, tmp_path)
     del got[:]
     ros.spin_for(2.0)
     after = lags_ms(got)
-    print(f'arrival - stamp before the stall: min {min(before):.3f} ms, decile {decile(before):.3f} ms, median '
-          f'{statistics.median(before):.3f} ms; after: min {min(after):.3f} ms, decile {decile(after):.3f} ms, median '
+    print(f'arrival - stamp before the stall: min {min(before):.3f} ms, decile '
+          f'{decile(before):.3f} ms, median {statistics.median(before):.3f} ms; after: min '
+          f'{min(after):.3f} ms, decile {decile(after):.3f} ms, median '
           f'{statistics.median(after):.3f} ms')
     # before the fix the lag grew by the stall (2.1 s after a 2 s stop) and stayed
     assert min(after) < 1.0 and decile(after) < 5.0, (min(after), decile(after))
