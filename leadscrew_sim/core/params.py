@@ -246,7 +246,7 @@ class ScrewParams(Schema):
 
     @property
     def reference_speed_limit(self):
-        """The drive's velocity reference limit [rad/s]: velocity_limit, max_screw_velocity."""
+        """Return the velocity reference limit [rad/s]: velocity_limit within the rated speed."""
         if self.max_screw_velocity > 0.0:
             return min(self.velocity_limit, self.max_screw_velocity)
         return self.velocity_limit

@@ -49,7 +49,7 @@ def nut_rms(stdout):
 
 
 def test_info_proposes_no_state_topic_as_a_command(bare):
-    """info offers the three command topics, together too, and never /nut_position."""
+    """The info verb offers the three command topics, together too, and never /nut_position."""
     r = cli_ok('info', bare)
     flags = [ln for ln in r.stdout.splitlines() if '--command-topic' in ln]
     assert flags and not any('/nut_position' in ln for ln in flags), r.stdout
@@ -57,7 +57,7 @@ def test_info_proposes_no_state_topic_as_a_command(bare):
 
 
 def test_the_nodes_topics_map_with_no_flags(bare):
-    """resim of the bare file with --preset alone takes all three command topics, latest acting."""
+    """The resim verb with --preset alone takes all three command topics, the latest acting."""
     r = cli_ok('resim', bare, '--preset', 'tr12x3')
     assert 'commands from /torque_command, /velocity_command, /position_command' in r.stdout
     one = cli_ok('resim', bare, '--preset', 'tr12x3', '--command-topic', '/velocity_command')

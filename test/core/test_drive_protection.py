@@ -33,7 +33,7 @@ TRIP = 1.2 * RATED
 
 
 def preset(**changes):
-    """Return the tr12x3 preset (vertical, 10 kg, self-locking) with changes."""
+    """Return tr12x3 (vertical, 10 kg, self-locking) with ``changes``."""
     return load_preset('tr12x3', **changes)
 
 

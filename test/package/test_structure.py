@@ -118,7 +118,7 @@ def test_every_error_derives_from_leadscrew_error():
 
 
 def test_a_bad_value_names_the_parameter_value_and_range():
-    """ScrewParams with mu_k -1 raises a LeadscrewError naming mu_k, -1 and the range."""
+    """A parameter set with mu_k -1 raises a LeadscrewError naming mu_k, -1 and the range."""
     from leadscrew_sim import LeadscrewError, ScrewParams
     with pytest.raises(LeadscrewError) as info:
         ScrewParams.from_dict({'mu_k': -1})

@@ -19,7 +19,6 @@ controller_manager 4.11 and ros2_controllers 4.8:
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray
-from helpers import stamp_ns
 from leadscrew_sim.core import load_preset
 import pytest
 from std_srvs.srv import Trigger

@@ -1,6 +1,4 @@
-"""
-The single excitation profiles by name: the parts a chained run (:mod:`.commission`) is made of.
-"""
+"""The single excitation profiles by name: the parts of a chained run (:mod:`.commission`)."""
 from .breakaway import BreakawayRamp
 from .broadband import BROADBAND
 from .positioning import Iso230, Reversals

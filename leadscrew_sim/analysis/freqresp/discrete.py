@@ -1,6 +1,4 @@
-"""
-The zero-order-hold discretisation of a linear system, shared by the linear and lifted responses.
-"""
+"""The zero-order-hold discretisation shared by the linear and the lifted responses."""
 import numpy as np
 from scipy.linalg import expm
 
