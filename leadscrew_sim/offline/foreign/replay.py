@@ -167,9 +167,10 @@ class ForeignReplay:
         """
         Return the nut position the recording starts at [m] (None without nut positions).
 
-        The median of the measured nut positions before the first motion (the
-        first state alone when the recording starts moving): the noise of one
-        reading would otherwise shift the twin's start.
+        The median of the measured nut positions before the first motion: the
+        noise of one reading would otherwise shift the twin's start. A recording
+        that moves from its first state on started from rest at the first
+        command: the first state less half its velocity times the time since.
         """
         x = self.states.values.get('nut_position')
         if x is None or not np.isfinite(x).any():
@@ -178,7 +179,17 @@ class ForeignReplay:
         segments = motion_segments(time, {'nut_position': x}, np.isfinite(x))
         first = segments[0][0] if segments else 0
         before = x[:first][np.isfinite(x[:first])]
-        return float(np.median(before)) if len(before) else float(x[np.isfinite(x)][0])
+        if len(before):
+            return float(np.median(before))
+        # Moving from the first state on: that state lies after the first command, and the
+        # axis was at rest until then. Its motion since, under a constant acceleration from
+        # rest, is half its velocity times the time since the first command.
+        i = int(np.flatnonzero(np.isfinite(x))[0])
+        v = self.states.values.get('nut_velocity')
+        since = (int(self.states.stamps[i]) - self.first) / NS
+        if v is None or not np.isfinite(v[i]) or not since > 0.0:
+            return float(x[i])
+        return float(x[i] - 0.5 * v[i] * since)
 
     # ------------------------------------------------------------------ grid
     def set_delay(self, delay):
