@@ -24,7 +24,7 @@ For both it measures: achieved rate (ticks / wall time, and messages / s at
 the subscriber), p50/p99/max of the tick start's lateness behind its
 deadline, overruns, CPU share (/proc/<pid>/stat, recorder child separately)
 and the command -> state latency: this process publishes a new torque every
-100 ms with its send time and waits for the first joint_states whose effort
+100 ms with its send time and waits for the first axis/joint_states whose effort
 equals it (p50/p99). Prints both side by side with ratios.
 """
 import argparse
@@ -109,7 +109,7 @@ def bare_loop(rate, stats_path):
         held['torque'] = deserialize_message(data, Float64).data
 
     node.create_subscription(Float64, 'torque_command', on_cmd, COMMAND_QOS, raw=True)
-    pub = node.create_publisher(JointState, 'joint_states', STATE_QOS)
+    pub = node.create_publisher(JointState, 'axis/joint_states', STATE_QOS)   # as the node
     ex = make_executor()
     ex.add_node(node)
     running = {'on': True}
@@ -251,7 +251,7 @@ def measure(argv, stats_path, duration, label, client=None):
             if sent is not None:
                 latencies.append(t - sent)
 
-    node.create_subscription(JointState, 'joint_states', on_state,
+    node.create_subscription(JointState, 'axis/joint_states', on_state,
                              QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE),
                              raw=True)
     pub = node.create_publisher(Float64, 'torque_command', 10)
@@ -358,8 +358,8 @@ def foxglove_runs(node_argv, node_stats, tmp, duration):
     print(f'\nSDK library mapped: port 0 {off["foxglove_loaded"]}, no client '
           f'{idle["foxglove_loaded"]}, 1 client {one["foxglove_loaded"]}')
     print(f'client: {c["topics"]} topics, {c["messages_per_s"]:.0f} messages/s, '
-          f'{c["bytes_per_s"] / 1e6:.2f} MB/s; /joint_states '
-          f'{c["per_topic"].get("/joint_states", 0.0):.1f} /s; the client process itself '
+          f'{c["bytes_per_s"] / 1e6:.2f} MB/s; /axis/joint_states '
+          f'{c["per_topic"].get("/axis/joint_states", 0.0):.1f} /s; the client process itself '
           f'{100 * c["cpu"]:.1f} % of a core')
     print(f'CPU rise with the client: {100 * (one["cpu"] - off["cpu"]):+.1f} % of a core '
           f'(served idle: {100 * (idle["cpu"] - off["cpu"]):+.1f} %)')

@@ -6,7 +6,7 @@ Run: .venv/bin/python bench/bench_rate.py [--duration 60] [--rates 1000 2000 300
 
 For each rate, one after the other: ``leadscrew_sim_node`` in realtime mode
 with recording on runs for ``--duration`` s while this process subscribes to
-``joint_states`` and sends a torque every 100 ms (as bench_node.py). Locked
+``axis/joint_states`` and sends a torque every 100 ms (as bench_node.py). Locked
 means the catch-up was never exhausted: zero overruns (skipped steps) over
 the whole run, so simulated time advanced exactly with wall time. Prints,
 per rate: achieved rate, late ticks and catch-up steps, overruns, CPU of

@@ -1,11 +1,11 @@
 """
-Measure the first start: cold (empty numba cache) and warm, to the first joint_states and simulate.
+Measure a cold (empty numba cache) and a warm start: to the first axis/joint_states, and simulate.
 
 Run: .venv/bin/python bench/bench_start.py [--repeat 2]
 (with AMENT_PREFIX_PATH set as in the Makefile). For each of a cold start (a
 new, empty NUMBA_CACHE_DIR: the kernel is compiled) and a warm one (the same
 directory again: the kernel is loaded), it prints the wall time from starting
-the node process to the first ``joint_states`` message a subscriber in this
+the node process to the first ``axis/joint_states`` message a subscriber in this
 process receives, and the wall time of ``leadscrew_sim simulate --duration 0.1``
 from start to exit.
 """
@@ -20,12 +20,12 @@ import time
 
 
 def first_joint_states(env, timeout=300.0):
-    """Start the node; return the seconds until the first joint_states arrives here."""
+    """Start the node; return the seconds until the first axis/joint_states arrives here."""
     import rclpy
     from sensor_msgs.msg import JointState
     got = []
     node = rclpy.create_node('bench_start')
-    node.create_subscription(JointState, 'joint_states', lambda m: got.append(1), 10)
+    node.create_subscription(JointState, 'axis/joint_states', lambda m: got.append(1), 10)
     t0 = time.monotonic()
     proc = subprocess.Popen([sys.executable, '-m', 'leadscrew_sim.node', '--ros-args', '-p',
                              'record:=false'], env=env, stdout=subprocess.DEVNULL,

@@ -11,7 +11,7 @@ tr12x3) runs in realtime mode, recording with a file split every ``--split``
 seconds and ``record_max_total_bytes`` from ``--max-total-bytes`` (default 4 GiB:
 an hour of this soak records more than the node's default 1 GiB, whose pruning
 would delete the first files), with sensors that are not ideal: a 65536-count
-motor encoder with noise, a 1 um linear scale with noise, joint_states 2 ticks
+motor encoder with noise, a 1 um linear scale with noise, axis/joint_states 2 ticks
 late and commands acting 1 tick late. Its position loop closes on the linear
 scale (``drive_feedback`` linear_scale; the velocity loop stays on the encoder):
 with the default motor encoder feedback a frozen encoder makes the drive run the
@@ -35,7 +35,7 @@ This script's monitor node:
 At the end it stops the commands, waits until the node has taken the last of
 them, stops the node (SIGINT), reads the summaries of the files and prints one
 line each: ticks taken (the node's "stopped after N steps") against
-the sim/joint_states (truth, every tick) and joint_states (sensor: less the samples
+the sim/joint_states (truth, every tick) and axis/joint_states (sensor: less the samples
 lost to fault.state_drop_rate and the state_delay samples still under way at
 exit) in the files, position commands sent, received and recorded, late ticks and
 overruns from diagnostics and whether every skipped step was reported (the
@@ -424,7 +424,7 @@ def main():
     bound = node_params.get('record_max_total_bytes')
     state_delay = int(node_params.get('state_delay') or 0)
     dropped_states = int(last.get('dropped_states', 0))
-    truth, sensor = counts.get('sim/joint_states', 0), counts.get('joint_states', 0)
+    truth, sensor = counts.get('sim/joint_states', 0), counts.get('axis/joint_states', 0)
     sensor_expected = None if steps is None else steps - dropped_states - state_delay
     drift_ms, skipped_span = lag_check(mon.lags, dt_ns)
     warm = mon.warm or {}
@@ -488,7 +488,7 @@ def report(s):
     print(f'ticks taken {s["ticks_taken"]}; sim/joint_states in files '
           f'{s["sim_joint_states_in_files"]} (equal: '
           f'{yes(s["ticks_taken"] == s["sim_joint_states_in_files"])}){kept}')
-    print(f'joint_states in files {s["joint_states_in_files"]}; expected: ticks - '
+    print(f'axis/joint_states in files {s["joint_states_in_files"]}; expected: ticks - '
           f'{s["dropped_states"]} lost to fault.state_drop_rate - '
           f'{s["node_parameters"].get("state_delay")} still under way (state_delay) at exit = '
           f'{s["joint_states_expected"]} (equal: '

@@ -2,7 +2,7 @@
 Bags in ros2_control's layout, written by rosbags (an independent writer) from simulate runs.
 
 A test runs ``leadscrew_sim simulate`` with its own secret parameter values,
-decodes the run's ``joint_states`` with mcap_ros2 (a reader we did not
+decodes the run's ``axis/joint_states`` with mcap_ros2 (a reader we did not
 write) and re-samples them into a rosbag2 bag as a robot records it:
 ``/joint_states`` of joint_state_broadcaster (two joints of the user's
 names, epoch header stamps, irregular 2-10 ms intervals with drops), and the
@@ -26,6 +26,8 @@ EPOCH = 1_764_763_200_123_456_789
 #: The robot's joint names.
 SCREW, NUT = 'axis_screw_joint', 'axis_nut_joint'
 STATES = '/joint_states'
+#: The states topic of a ``simulate`` file (the node's name).
+SIM_STATES = '/axis/joint_states'
 FORWARD = '/forward_position_controller/commands'
 TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
 #: Receipt latency of the commands [ns]: their log time is their sending time plus this.
@@ -45,7 +47,7 @@ def simulate(tmp, sets, position_csv, duration, name='sim.mcap'):
     return out
 
 
-def sim_states(path, topic='/joint_states'):
+def sim_states(path, topic=SIM_STATES):
     """Return (stamps [ns], position (n, 2), velocity (n, 2), effort (n, 2)) via mcap_ros2."""
     stamps, pos, vel, eff = [], [], [], []
     for m in read_ros2_messages(str(path), topics=[topic]):

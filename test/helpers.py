@@ -178,9 +178,9 @@ def start_node(run_exe, *params, record=False):
 
 
 def wait_states(ros, states, proc, n=1, timeout=30.0):
-    """Wait until n joint_states arrived (or the node died)."""
+    """Wait until n axis/joint_states arrived (or the node died)."""
     ok = ros.spin_until(lambda: len(states) >= n or proc.proc.poll() is not None, timeout)
-    assert ok and len(states) >= n, f'no joint_states from the node:\n{proc.output()}'
+    assert ok and len(states) >= n, f'no axis/joint_states from the node:\n{proc.output()}'
 
 
 def command_publisher(ros, topic='torque_command', msg_type=None, timeout=10.0):

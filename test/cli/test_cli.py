@@ -138,16 +138,16 @@ def test_simulate_file_layout(sim_file):
         chans = {c.topic: reader.get_summary().schemas[c.schema_id].name
                  for c in reader.get_summary().channels.values()}
     assert chans == {'/torque_command': 'std_msgs/msg/Float64',
-                     '/joint_commands': 'sensor_msgs/msg/JointState',
+                     '/axis/joint_commands': 'sensor_msgs/msg/JointState',
                      '/external_force': 'std_msgs/msg/Float64',
                      '/velocity_command': 'std_msgs/msg/Float64',
                      '/position_command': 'std_msgs/msg/Float64',
-                     '/joint_states': 'sensor_msgs/msg/JointState',
+                     '/axis/joint_states': 'sensor_msgs/msg/JointState',
                      '/nut_position': 'std_msgs/msg/Float64',
                      '/thread_force': 'geometry_msgs/msg/WrenchStamped',
                      '/sim/joint_states': 'sensor_msgs/msg/JointState',
                      '/sim/thread_state': 'leadscrew_sim/msg/ThreadState',
-                     '/robot_description': 'std_msgs/msg/String',
+                     '/axis/robot_description': 'std_msgs/msg/String',
                      '/tf_static': 'tf2_msgs/msg/TFMessage',
                      '/tf': 'tf2_msgs/msg/TFMessage'}
     params = meta['leadscrew_sim_parameters']
@@ -155,11 +155,11 @@ def test_simulate_file_layout(sim_file):
     assert params['clock_mode'] == 'simulate' and params['preset'] == 'tr12x3'
     assert params['update_rate'] == '1000.0' and params['dt_ns'] == '1000000'
     assert 'rosbag2' in meta
-    for topic in ('/joint_states', '/nut_position', '/thread_force', '/sim/joint_states',
+    for topic in ('/axis/joint_states', '/nut_position', '/thread_force', '/sim/joint_states',
                   '/torque_command', '/tf'):
         assert len(by_topic[topic]) == 1000, topic
-    assert len(by_topic['/robot_description']) == len(by_topic['/tf_static']) == 1
-    js = by_topic['/joint_states']
+    assert len(by_topic['/axis/robot_description']) == len(by_topic['/tf_static']) == 1
+    js = by_topic['/axis/joint_states']
     times = [t for t, _ in js]
     assert times == [k * 1_000_000 for k in range(1, 1001)]
     assert [t for t, _ in by_topic['/torque_command']] == [k * 1_000_000 for k in range(1000)]
@@ -208,7 +208,7 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
     """
     Per tick: torque_command at t_k, external_force only when it changes, then the states.
 
-    (robot_description and /tf_static first, /tf after the states, /clock last.)
+    (axis/robot_description and /tf_static first, /tf after the states, /clock last.)
 
     2.5 s at 1 kHz spans whole and partial blocks of the batched writer; the
     force CSV changes before the ticks at 0.25 s, 0.999 s (the last tick of
@@ -229,13 +229,13 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
     ms = 1_000_000
     forces = [(t, C.decode_float64(d)) for topic, t, d in seq if topic == '/external_force']
     assert forces == [(0, 0.0), (250 * ms, 3.0), (999 * ms, -2.0), (1000 * ms, 5.0)]
-    expected = [('/robot_description', 0), ('/tf_static', 0)]
+    expected = [('/axis/robot_description', 0), ('/tf_static', 0)]
     force_at = {t for t, _ in forces}
     for k in range(2500):
         expected.append(('/torque_command', k * ms))
         if k * ms in force_at:
             expected.append(('/external_force', k * ms))
-        expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
+        expected += [(t, (k + 1) * ms) for t in ('/axis/joint_states', '/nut_position',
                                                  '/thread_force', '/sim/joint_states',
                                                  '/sim/thread_state', '/tf', '/clock')]
     assert [(t, lt) for t, lt, _ in seq] == expected
@@ -246,7 +246,7 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
 def test_info(sim_file):
     """Info shows counts, the position range and the stick fraction recorded in the file."""
     r = cli_ok('info', sim_file)
-    assert re.search(r'/joint_states\s+sensor_msgs/msg/JointState\s+1000', r.stdout)
+    assert re.search(r'/axis/joint_states\s+sensor_msgs/msg/JointState\s+1000', r.stdout)
     assert 'nut position: min' in r.stdout and 'stuck' in r.stdout
     assert '(recorded in sim/thread_state)' in r.stdout
     assert 'duration:  1.000000 s' in r.stdout
@@ -258,7 +258,7 @@ def test_info(sim_file):
 
 def test_play_timing(tmp_path, run_exe):
     """
-    A subscriber receives all 200 joint_states of a 100 Hz file in order, with their spacing.
+    A subscriber receives all 200 axis/joint_states of a 100 Hz file in order, with their spacing.
 
     Tolerance: median |inter-arrival - 10 ms| < 2 ms. The player sleeps to
     absolute deadlines (sub-0.1 ms wake-up error); local DDS delivery and the
@@ -278,7 +278,7 @@ def test_play_timing(tmp_path, run_exe):
     node = rclpy.create_node('play_listener', context=ctx)
     got = []
     node.create_subscription(
-        JointState, '/joint_states',
+        JointState, '/axis/joint_states',
         lambda m: got.append((time.monotonic(), m.header.stamp.sec * NS + m.header.stamp.nanosec)),
         QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     ex = SingleThreadedExecutor(context=ctx)
@@ -286,7 +286,7 @@ def test_play_timing(tmp_path, run_exe):
     th = threading.Thread(target=ex.spin, daemon=True)
     th.start()
     try:
-        p = run_exe('leadscrew_sim.cli', 'play', path, '--topics', '/joint_states',
+        p = run_exe('leadscrew_sim.cli', 'play', path, '--topics', '/axis/joint_states',
                     '--wait-subscribers', 1, '--wait-timeout', 10)
         assert p.wait(timeout=30) == 0, p.output()
         end = time.monotonic() + 5

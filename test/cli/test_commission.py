@@ -245,13 +245,13 @@ def _held_out_rms(rec, window):
 
     The re-simulation is ``resim``'s of the recording with the parameter
     overrides (none: the recording's own truth and noise draw), compared at
-    the joint_states stamps in ``window`` [s].
+    the axis/joint_states stamps in ``window`` [s].
     """
     from leadscrew_sim.io import cdr as C
     from leadscrew_sim.offline.options import open_recording
     from leadscrew_sim.offline.replay.resim import Resim
     r = open_recording(rec)
-    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/joint_states'
+    rows = [(st / 1e9, pos[1]) for _t, tp, data in r.messages if tp == '/axis/joint_states'
             for st, _n, pos, _v, _e in [C.decode_joint_state(data)]]
     ts, xs = np.array(rows).T
     k = (ts >= window[0]) & (ts <= window[1])

@@ -19,6 +19,8 @@ from leadscrew_sim.core.model import LeadScrewModel
 from leadscrew_sim.core.presets import load_preset
 
 DT = 1e-3
+#: Motor torque [N m]: it runs the axis past the preset's overspeed trip, off here
+#: (max_screw_velocity 0).
 TORQUE = 0.3
 LIMIT_MIN = -0.15
 #: (time [s], parameter, value) of the schedule; all on whole steps.
@@ -43,7 +45,7 @@ def _events(stdout):
 
 def _oracle():
     """Return {event text: time [s]} from the model's own columns of the scheduled run."""
-    p = load_preset('tr12x3', limit_min_position=LIMIT_MIN)
+    p = load_preset('tr12x3', limit_min_position=LIMIT_MIN, max_screw_velocity=0.0)
     model = LeadScrewModel(p, dt=DT)
     cuts = [0] + [round(t / DT) for t, _n, _v in SCHEDULE] + [1000]
     parts = []
@@ -97,8 +99,8 @@ def scheduled_run(tmp_path_factory):
     faults.write_text('time,parameter,value\n' + rows)
     out = d / 'run.mcap'
     r = cli_ok('simulate', '--preset', 'tr12x3', '--torque', TORQUE, '--duration', 1.0,
-               '--set', f'limit_min_position={LIMIT_MIN}', '--faults', faults, '--quiet',
-               '--output', out)
+               '--set', f'limit_min_position={LIMIT_MIN}', '--set', 'max_screw_velocity=0.0',
+               '--faults', faults, '--quiet', '--output', out)
     return r.stdout, out
 
 

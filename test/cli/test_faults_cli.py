@@ -84,7 +84,7 @@ def _simulate(tmp, name, schedule, duration, *args, step_end=False):
     ``step_end``: assert that the drive period (the sensors' sampling period,
     m = max(1, round(nsub / (dt drive_rate))) substeps) divides the step, so
     that the last sample of each step is taken at its end, the stamp of its
-    joint_states.
+    axis/joint_states.
     """
     faults = tmp / f'{name}.faults.csv'
     faults.write_text(schedule)
@@ -118,7 +118,7 @@ def _read_mcap(path):
     return meta, topics
 
 
-def _read_rosbags(path, topics=('/joint_states', '/sim/joint_states', '/nut_position')):
+def _read_rosbags(path, topics=('/axis/joint_states', '/sim/joint_states', '/nut_position')):
     """Return {topic: [(log time, deserialized message)]} read with rosbags' AnyReader."""
     from rosbags.highlevel import AnyReader
     out = {t: [] for t in topics}
@@ -228,9 +228,10 @@ def test_command_drop_counts_commands_since_start(tmp_path):
     """With fault.command_drop_rate from 0.35 s, command n is lost iff uniform(seed, 3, n) < p."""
     from leadscrew_sim.core.engine.sensors import STREAM_COMMAND_DROP, uniform
     p, seed, k_on = 0.2, 7, 350
+    # the sine runs the axis past the preset's overspeed trip: off here (max_screw_velocity 0)
     out = _simulate(tmp_path, 'drop', f'time,parameter,value\n0.35,fault.command_drop_rate,{p}\n',
                     FULL_DURATION, '--profile', 'sine', '--amplitude', 0.1, '--frequency', 2.0,
-                    '--set', f'sensor_seed={seed}')
+                    '--set', f'sensor_seed={seed}', '--set', 'max_screw_velocity=0.0')
     _meta, topics = _read_mcap(out)
     sent = {t // DT_NS: m.data for t, m in topics['/torque_command']}
     motor = {_stamp(m) // DT_NS: m.effort[0] for _t, m in topics['/sim/joint_states']}
@@ -249,14 +250,14 @@ def test_command_drop_counts_commands_since_start(tmp_path):
 # ---------------------------------------------------------------------------
 
 def test_encoder_freeze_holds_joint_states(tmp_path):
-    """While fault.encoder_freeze is on joint_states' screw joint is constant; the truth moves."""
+    """While fault.encoder_freeze is on, axis/joint_states' screw joint holds; the truth moves."""
     sched = ('time,parameter,value\n0.1995,fault.encoder_freeze,true\n'
              '0.4,fault.encoder_freeze,false\n')
     out = _simulate(tmp_path, 'freeze', sched, 0.6, '--profile', 'sine', '--amplitude', 0.1,
                     '--frequency', 2.0, *SENSORS, *STEP_END, step_end=True)
     _meta, topics = _read_mcap(out)
     truth = _truth(topics['/sim/joint_states'])
-    js = {_stamp(m) // DT_NS: m for _t, m in topics['/joint_states']}
+    js = {_stamp(m) // DT_NS: m for _t, m in topics['/axis/joint_states']}
     assert sorted(js) == list(range(1, 601))
     # The freeze acts from step 200 (0.1995 s rounds up) up to step 399: the samples of
     # stamps 201..400 hold the reading of stamp 200 with velocity 0.
@@ -292,7 +293,7 @@ def test_state_drop_rate_binomial(tmp_path):
     n_ticks = int(duration * 1000)
     all_stamps = set(range(1, n_ticks + 1))
     assert [_stamp(m) // DT_NS for _t, m in topics['/sim/joint_states']] == sorted(all_stamps)
-    js = [(t // DT_NS, _stamp(m) // DT_NS) for t, m in topics['/joint_states']]
+    js = [(t // DT_NS, _stamp(m) // DT_NS) for t, m in topics['/axis/joint_states']]
     assert all(t == s for t, s in js)                    # no delay: logged at their stamp
     missing = all_stamps - {s for _t, s in js}
     # Steps k_on .. k_off - 1 (stamps k_on + 1 .. k_off) are subject to the loss, N of them.
@@ -301,14 +302,14 @@ def test_state_drop_rate_binomial(tmp_path):
     mean, sigma = n * p, math.sqrt(n * p * (1.0 - p))
     # Binomial(N = 1000, p = 0.3): mean 300, sigma 14.5; 3 sigma is exceeded with P ~ 0.3 %.
     assert abs(len(missing) - mean) <= 3.0 * sigma, (len(missing), mean, sigma)
-    # nut_position and /tf are lost with their joint_states.
+    # nut_position and /tf are lost with their axis/joint_states.
     assert [t // DT_NS for t, _m in topics['/nut_position']] == [t for t, _s in js]
     assert [t // DT_NS for t, _m in topics['/tf']] == [t for t, _s in js]
 
 
 @pytest.mark.parametrize('sensors', ['ideal', 'quantised'])
 def test_state_delay_stamps_and_values(sensors, tmp_path):
-    """With state_delay d joint_states logged at tick n carries stamp n - d and its truth."""
+    """With state_delay d axis/joint_states logged at tick n carries stamp n - d and its truth."""
     sched = 'time,parameter,value\n0.3,state_delay,3\n0.6,state_delay,1\n'
     out = _simulate(tmp_path, 'delay', sched, 0.8, '--profile', 'sine', '--amplitude', 0.1,
                     '--frequency', 2.0, *(QUANTISED if sensors == 'quantised' else []),
@@ -316,7 +317,7 @@ def test_state_delay_stamps_and_values(sensors, tmp_path):
     topics = _read_rosbags(out)
     truth = _truth(topics['/sim/joint_states'])
     assert sorted(truth) == [k * DT_NS for k in range(1, 801)]
-    js = [(t, _stamp(m), m) for t, m in topics['/joint_states']]
+    js = [(t, _stamp(m), m) for t, m in topics['/axis/joint_states']]
     # Every sample is delivered exactly once, in order; the last one (delay 1 at the end)
     # never is.
     assert [s for _t, s, _m in js] == [k * DT_NS for k in range(1, 800)]
@@ -345,7 +346,7 @@ def test_state_delay_stamps_and_values(sensors, tmp_path):
             assert abs(m.position[0] - q_m) < COUNT + 1e-9, s
             assert abs(m.position[0] / COUNT - round(m.position[0] / COUNT)) < 1e-6, s
             assert -1e-12 <= x - m.position[1] < RES + 1e-12, s
-    # nut_position follows its joint_states (same log times, same value).
+    # nut_position follows its axis/joint_states (same log times, same value).
     assert [(t, m.data) for t, m in topics['/nut_position']] == \
         [(t, m.position[1]) for t, _s, m in js]
 
@@ -359,9 +360,9 @@ def test_quantised_reading_at_its_stamp_default_drive_rate(tmp_path):
     # floor quantisation: |reading - true motor angle| < one count (1e-9 rad: rounding),
     # 0 <= x - reading < r (1e-12 m), if the reading is the truth at the stamp.
     worst_enc = max(abs(m.position[0] - truth[_stamp(m)][0][0])
-                    for _t, m in topics['/joint_states'])
+                    for _t, m in topics['/axis/joint_states'])
     worst_sc = max(abs(m.position[1] - truth[_stamp(m)][0][2])
-                   for _t, m in topics['/joint_states'])
+                   for _t, m in topics['/axis/joint_states'])
     assert worst_enc < COUNT + 1e-9 and worst_sc < RES + 1e-12, (worst_enc / COUNT,
                                                                  worst_sc / RES)
 
@@ -430,7 +431,7 @@ def test_same_command_line_same_file(source, tmp_path):
 
 
 def test_sensor_seed_changes_readings_not_truth(tmp_path):
-    """Another sensor_seed changes joint_states but not the truth before seeded command losses."""
+    """Another sensor_seed changes axis/joint_states, not the truth before seeded command loss."""
     args = _inputs('sine', tmp_path)
     a = _simulate(tmp_path, 'a', FULL_SCHEDULE, FULL_DURATION, *args, *SENSORS)
     b = _simulate(tmp_path, 'b', FULL_SCHEDULE, FULL_DURATION, *args, *SENSORS,
@@ -442,7 +443,7 @@ def test_sensor_seed_changes_readings_not_truth(tmp_path):
     assert ta[DT_NS] == tb[DT_NS]
     for n in range(1, 351):
         assert ta[n * DT_NS] == tb[n * DT_NS], n
-    ja, jb = ({_stamp(m): list(m.position) for _t, m in _read_mcap(p)[1]['/joint_states']}
+    ja, jb = ({_stamp(m): list(m.position) for _t, m in _read_mcap(p)[1]['/axis/joint_states']}
               for p in (a, b))
     common = sorted(set(ja) & set(jb))
     differ = sum(ja[s] != jb[s] for s in common)

@@ -32,6 +32,9 @@ SENSORS = dict(encoder_counts=2 ** 17, encoder_noise=0.5 * 2 * math.pi / 2 ** 17
 #: True values relative to the preset's (the fit starts at the preset's).
 TRUTH = dict(mu_s=1.25, mu_k=0.8, stribeck_velocity=1.3, backlash=0.75)
 FIT = 'mu_s,mu_k,stribeck_velocity,backlash'
+#: The torque pulses run the axis past the preset's overspeed trip: off in their
+#: recordings and fits (max_screw_velocity 0).
+NO_OVERSPEED = ('--set', 'max_screw_velocity=0.0')
 
 #: The issue's tolerances: relative, and an absolute floor [unit].
 TOLERANCE = dict(mu_s=(0.02, 0.0), mu_k=(0.01, 0.0), stribeck_velocity=(0.10, 0.0),
@@ -129,6 +132,8 @@ def recording(tmp_path_factory, preset, mode):
         tmp = tmp_path_factory.mktemp(f'{preset}_{mode}')
         opts, duration = profile(tmp, preset, mode)
         _p, sets = truth(preset)
+        if mode == 'torque':
+            sets += NO_OVERSPEED
         rec = tmp / 'run.mcap'
         cli_ok('simulate', '--preset', preset, *opts, '--duration', duration, *sets, '-q',
                '-o', rec)
@@ -144,7 +149,8 @@ def fitted(tmp_path_factory, preset, mode, *options):
         main = importlib.import_module('leadscrew_sim.cli.main')
         from leadscrew_sim.offline.identify.run import fit_recording
         args = main.build_parser().parse_args(['identify', str(rec), '--preset', preset,
-                                               '--fit', FIT, *options])
+                                               '--fit', FIT, *options,
+                                               *(NO_OVERSPEED if mode == 'torque' else ())])
         _FITS[key] = (rec, fit_recording(args))
     return _FITS[key]
 
@@ -292,17 +298,17 @@ def test_a_foreign_recording_by_its_topics(tmp_path_factory):
     from leadscrew_sim.offline.identify.run import fit_recording
     args = main.build_parser().parse_args([
         'identify', str(rec), '--preset', 'tr12x3', '--fit', 'mu_s,mu_k,stribeck_velocity',
-        '--state-topic', '/joint_states', '--command-topic', '/torque_command',
+        '--state-topic', '/axis/joint_states', '--command-topic', '/torque_command',
         '--command-kind', 'torque', '--screw-joint', 'screw_joint', '--nut-joint',
-        'nut_joint'])
+        'nut_joint', *NO_OVERSPEED])
     out = fit_recording(args)
     assert out['problem'].foreign
     true, _sets = truth('tr12x3')
     for name, value, vd in zip(out['res'].names, out['res'].values, out['res'].verdicts):
         rel, _floor = TOLERANCE[name]
         assert vd.identified and abs(value - getattr(true, name)) <= rel * getattr(true, name)
-    _one_error_line(cli('identify', rec, '--state-topic', '/joint_states'), '--command-topic')
-    _one_error_line(cli('identify', rec, '--state-topic', '/joint_states', '--command-topic',
+    _one_error_line(cli('identify', rec, '--state-topic', '/axis/joint_states'), '--command-topic')
+    _one_error_line(cli('identify', rec, '--state-topic', '/axis/joint_states', '--command-topic',
                         '/torque_command'), '--command-kind')
 
 

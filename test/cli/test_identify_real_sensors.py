@@ -27,8 +27,9 @@ from leadscrew_sim import load_preset
 #: The secret truth of every case (none of it the preset's).
 TRUTH = dict(mu_s=0.235, mu_k=0.128, stribeck_velocity=1.15e-3)
 
-#: The horizontal axis of the torque steps (a fixed value: the start has it too).
-HORIZONTAL = dict(inclination=0.0)
+#: The horizontal axis of the torque steps (a fixed value: the start has it too); the
+#: steps run it past the preset's overspeed trip: off (max_screw_velocity 0).
+HORIZONTAL = dict(inclination=0.0, max_screw_velocity=0.0)
 
 #: The real sensors: 16-bit encoder, half a count of noise; 1 um scale, 0.25 um of noise.
 Q_SCALE = 1e-6
@@ -127,7 +128,7 @@ def _check_recovered(out, names=('mu_s', 'mu_k'), intervals=True):
 
 def _foreign(*extra):
     """Return identify's options reading a recording as a foreign one (velocity commands)."""
-    return ('--state-topic', '/joint_states', '--command-topic', '/velocity_command',
+    return ('--state-topic', '/axis/joint_states', '--command-topic', '/velocity_command',
             '--command-kind', 'velocity', *extra)
 
 

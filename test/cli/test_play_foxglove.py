@@ -40,17 +40,17 @@ def test_play_foxglove_serves_recording_with_its_timing(tmp_path):
         stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ))
     try:
         c = FoxgloveClient(port, timeout=40.0, proc=proc)
-        assert c.wait_channels(['/joint_states', '/robot_description'])
-        assert c.channels['/joint_states']['encoding'] == 'cdr'
-        js = c.subscribe('/joint_states')
-        desc = c.subscribe('/robot_description')
+        assert c.wait_channels(['/axis/joint_states', '/axis/robot_description'])
+        assert c.channels['/axis/joint_states']['encoding'] == 'cdr'
+        js = c.subscribe('/axis/joint_states')
+        desc = c.subscribe('/axis/robot_description')
         arrivals = []
 
         def got_all():
             if c.data[js] and (not arrivals or arrivals[-1][1] != len(c.data[js])):
                 arrivals.append((time.monotonic(), len(c.data[js])))
-            return len(c.data[js]) >= len(recorded['/joint_states'])
-        assert c.poll_until(got_all, 30.0), (len(c.data[js]), len(recorded['/joint_states']))
+            return len(c.data[js]) >= len(recorded['/axis/joint_states'])
+        assert c.poll_until(got_all, 30.0), (len(c.data[js]), len(recorded['/axis/joint_states']))
         assert proc.wait(timeout=20) == 0, (tmp_path / 'play.log').read_text()
     finally:
         if proc.poll() is None:
@@ -58,11 +58,11 @@ def test_play_foxglove_serves_recording_with_its_timing(tmp_path):
         log.close()
     out = (tmp_path / 'play.log').read_text()
     # The same bytes with the log times as the messageData timestamps.
-    assert c.data[js] == recorded['/joint_states']
-    assert c.data[desc][0][1] == recorded['/robot_description'][0][1]
+    assert c.data[js] == recorded['/axis/joint_states']
+    assert c.data[desc][0][1] == recorded['/axis/robot_description'][0][1]
     # Original timing at half speed: 0.5 s of recording over about 1 s.
     span = arrivals[-1][0] - arrivals[0][0]
-    t = [lt for lt, _d in recorded['/joint_states']]
+    t = [lt for lt, _d in recorded['/axis/joint_states']]
     assert abs(span - 2 * (t[-1] - t[0]) / 1e9) < 0.25, span
     assert 'served' in out, out
 

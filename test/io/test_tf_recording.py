@@ -218,7 +218,9 @@ def test_xacro_args():
     assert args == {'prefix': 'z_', 'lead': str(p.pitch * p.starts), 'hand': p.hand,
                     'backlash': str(p.backlash), 'stroke_min': str(p.stroke_min),
                     'stroke_max': str(p.stroke_max), 'screw_diameter': str(p.major_diameter),
-                    'max_torque': str(p.max_torque)}
+                    'max_torque': str(p.max_torque),
+                    'max_screw_velocity': str(p.max_screw_velocity),
+                    'initial_position': str(p.initial_position)}
     # A mapping of node parameters, as the launch file reads them: only what is present.
     assert D.xacro_args({'starts': 2, 'backlash': 5e-5, 'mu_s': 0.2}) == {
         'prefix': '', 'lead': str(0.003 * 2), 'backlash': '5e-05'}
@@ -309,14 +311,14 @@ def _read_mcap_ros2(path):
 def test_simulate_recording_tf(tf_run, tmp_path):
     rb, qos = _read_rosbags(tf_run)
     mc = _read_mcap_ros2(tf_run)
-    for topic in ('/robot_description', '/tf_static', '/tf', '/joint_states'):
+    for topic in ('/axis/robot_description', '/tf_static', '/tf', '/axis/joint_states'):
         assert [t for t, _ in rb[topic]] == [t for t, _ in mc[topic]], topic
-    assert qos['/robot_description'] == qos['/tf_static'] == [('TRANSIENT_LOCAL', 1)]
+    assert qos['/axis/robot_description'] == qos['/tf_static'] == [('TRANSIENT_LOCAL', 1)]
     assert qos['/tf'] == [('VOLATILE', 100)]
 
-    # robot_description: the xacro rendering of the recorded axis, loadable by yourdfpy
-    (t_desc, desc), = rb['/robot_description']
-    (_t, desc2), = mc['/robot_description']
+    # axis/robot_description: the xacro rendering of the recorded axis, loadable by yourdfpy
+    (t_desc, desc), = rb['/axis/robot_description']
+    (_t, desc2), = mc['/axis/robot_description']
     assert t_desc == 0 and desc.data == desc2.data == D.render_urdf(
         D.xacro_args(load_preset('tr12x3'), 'x_'))
     robot = load_urdf(desc.data, tmp_path)
@@ -330,8 +332,8 @@ def test_simulate_recording_tf(tf_run, tmp_path):
     np.testing.assert_allclose(matrix(tr, q), robot.get_transform('x_motor_link', 'x_base_link'),
                                rtol=0, atol=TOL)
 
-    # /tf: every tick, stamped and logged as its joint_states, FK of its positions
-    js, tfs, tfs2 = rb['/joint_states'], rb['/tf'], mc['/tf']
+    # /tf: every tick, stamped and logged as its axis/joint_states, FK of its positions
+    js, tfs, tfs2 = rb['/axis/joint_states'], rb['/tf'], mc['/tf']
     assert len(js) == len(tfs) == 300
     moved = 0
     for (t_js, m), (t_tf, msg), (_t2, msg2) in zip(js, tfs, tfs2):
@@ -361,10 +363,10 @@ def test_tick_order(tf_run):
         seq = [(c.topic, m.log_time) for _s, c, m in make_reader(f).iter_messages(
             log_time_order=False)]
     ms = 1_000_000
-    expected = [('/robot_description', 0), ('/tf_static', 0)]
+    expected = [('/axis/robot_description', 0), ('/tf_static', 0)]
     for k in range(300):
         expected.append(('/torque_command', k * ms))
-        expected += [(t, (k + 1) * ms) for t in ('/joint_states', '/nut_position',
+        expected += [(t, (k + 1) * ms) for t in ('/axis/joint_states', '/nut_position',
                                                  '/thread_force', '/sim/joint_states',
                                                  '/sim/thread_state', '/tf', '/clock')]
     assert seq == expected
@@ -380,7 +382,7 @@ def test_resim_writes_the_same_description_and_tf(tf_run, tmp_path):
     """Per tick, resim writes the bytes simulate wrote block-wise; mcap doctor passes."""
     out = tmp_path / 'again.mcap'
     cli_ok('resim', tf_run, '--output', out, '--quiet')
-    for topic in ('/robot_description', '/tf_static', '/tf', '/joint_states'):
+    for topic in ('/axis/robot_description', '/tf_static', '/tf', '/axis/joint_states'):
         assert _raw(out, topic) == _raw(tf_run, topic), topic
     if MCAP_CLI.is_file():
         r = subprocess.run([str(MCAP_CLI), 'doctor', str(out)], capture_output=True,
@@ -397,5 +399,5 @@ def test_run_writer_without_params_has_no_description(tmp_path):
     with open(tmp_path / 'plain.mcap', 'rb') as f:
         summary = make_reader(f).get_summary()
     assert summary.statistics.message_count == 0
-    assert not {'/robot_description', '/tf', '/tf_static'} & {
+    assert not {'/axis/robot_description', '/tf', '/tf_static'} & {
         c.topic for c in summary.channels.values()}

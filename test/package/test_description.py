@@ -12,6 +12,7 @@ import io
 import math
 
 from helpers import REPO
+from leadscrew_sim.io.topics import resolve
 from lxml import etree
 import numpy as np
 import pytest
@@ -191,9 +192,13 @@ def test_ros2_control_block(interface, prefix):
     assert block.get('type') == 'system'
     assert block.findtext('hardware/plugin') == 'topic_based_ros2_control/TopicBasedSystem'
     params = {p.get('name'): p.text for p in block.findall('hardware/param')}
-    assert params == {'joint_commands_topic': '/joint_commands',
-                      'joint_states_topic': '/joint_states',
+    # The default topics are the node's in the root namespace (apart from
+    # joint_state_broadcaster's /joint_states).
+    assert params == {'joint_commands_topic': '/axis/joint_commands',
+                      'joint_states_topic': '/axis/joint_states',
                       'trigger_joint_command_threshold': '-1'}
+    assert params['joint_commands_topic'] == resolve('joint_commands')
+    assert params['joint_states_topic'] == resolve('joint_states')
     joints = {j.get('name'): j for j in block.findall('joint')}
     # the commanded joint only: TopicBasedSystem packs each interface's values for the
     # joints that have it, under the names of all joints of the block
@@ -210,12 +215,13 @@ def test_ros2_control_block(interface, prefix):
 
 
 def test_ros2_control_topics_are_arguments():
-    xml = render(ros2_control=True, joint_commands_topic='/x_axis/joint_commands',
-                 joint_states_topic='/x_axis/joint_states')
+    # The node in the namespace x_axis.
+    xml = render(ros2_control=True, joint_commands_topic='/x_axis/axis/joint_commands',
+                 joint_states_topic='/x_axis/axis/joint_states')
     params = {p.get('name'): p.text
               for p in etree.fromstring(xml.encode()).findall('ros2_control/hardware/param')}
-    assert params['joint_commands_topic'] == '/x_axis/joint_commands'
-    assert params['joint_states_topic'] == '/x_axis/joint_states'
+    assert params['joint_commands_topic'] == '/x_axis/axis/joint_commands'
+    assert params['joint_states_topic'] == '/x_axis/axis/joint_states'
 
 
 def test_no_ros2_control_block_by_default():

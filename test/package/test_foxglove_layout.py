@@ -104,10 +104,11 @@ def test_layout_paths_name_served_topics_and_fields(layout, store):
             assert topics[cfg['topicName']] == cfg['datatype']
             json.loads(cfg['value'])
         if kind == '3D':
-            assert topics['/robot_description'] == 'std_msgs/msg/String'
+            assert topics['/axis/robot_description'] == 'std_msgs/msg/String'
+            assert '/axis/robot_description' in cfg['topics'], cfg['topics']
             assert set(cfg['topics']) <= set(topics)
     # What the issue asks the layout to show.
-    for value in ('/joint_states.position[1]', '/joint_states.velocity[1]',
-                  '/joint_states.effort[0]', '/thread_force.wrench.force.x',
+    for value in ('/axis/joint_states.position[1]', '/axis/joint_states.velocity[1]',
+                  '/axis/joint_states.effort[0]', '/thread_force.wrench.force.x',
                   '/sim/thread_state.stick_a', '/sim/thread_state.contact_a'):
         assert value in plotted, value

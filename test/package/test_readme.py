@@ -4,7 +4,7 @@ Every command of the README's plain-venv block and of its offline-tools block wo
 The block after the ``venv-commands`` marker is run line by line with bash,
 in a scratch directory whose ``.venv`` is this repository's virtual
 environment, as a user would run it from the repository root. A command
-that runs until Ctrl-C (the node) must bring up ``/joint_states`` and exit
+that runs until Ctrl-C (the node) must bring up ``/axis/joint_states`` and exit
 0 on SIGINT; the others must exit 0. The block must not be empty.
 
 The block after the ``offline-commands`` marker is run line by line, in
@@ -61,11 +61,11 @@ def scratch(tmp_path_factory):
 
 
 def joint_states_seen(env, timeout):
-    """Return True if /joint_states is published within ``timeout`` s (another process)."""
+    """Return True if /axis/joint_states is published within ``timeout`` s (another process)."""
     code = ('import rclpy, sys, time\n'
             'from sensor_msgs.msg import JointState\n'
             'rclpy.init(); n = rclpy.create_node("readme_probe"); got = []\n'
-            'n.create_subscription(JointState, "/joint_states", got.append, 10)\n'
+            'n.create_subscription(JointState, "/axis/joint_states", got.append, 10)\n'
             f'end = time.monotonic() + {timeout}\n'
             'while not got and time.monotonic() < end:\n'
             '    rclpy.spin_once(n, timeout_sec=0.1)\n'

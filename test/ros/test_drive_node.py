@@ -50,9 +50,9 @@ def send(ros, pub, msg, seconds, period=0.01):
 @pytest.mark.timeout(180)
 def test_position_only_joint_state_moves_the_nut_to_the_target(run_exe, ros):
     proc = start_node(run_exe, 'preset:=tr12x3', 'command_timeout:=1.0')
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     wait_states(ros, states, proc)
-    pub = command_publisher(ros, 'joint_commands', JointState)
+    pub = command_publisher(ros, 'axis/joint_commands', JointState)
     x0 = nut(states)
     for target in (x0 + 0.004, x0 - 0.002):
         msg = JointState(name=['nut_joint'], position=[target])    # no velocity, no effort
@@ -71,10 +71,10 @@ def test_nan_padding_and_separate_messages_are_accepted(run_exe, ros):
     # The URDF's command interfaces are position and velocity: joint_command_mode position.
     proc = start_node(run_exe, 'preset:=tr12x3', 'command_timeout:=1.0',
                       'joint_command_mode:=position')
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     diags = ros.collect(DiagnosticArray, 'diagnostics')
     wait_states(ros, states, proc)
-    pub = command_publisher(ros, 'joint_commands', JointState)
+    pub = command_publisher(ros, 'axis/joint_commands', JointState)
     x0 = nut(states)
     # NaN padding: another joint in the message, NaN for what is not commanded.
     padded = JointState(name=['other_joint', 'nut_joint'], position=[NAN, x0 + 0.003],
@@ -102,9 +102,10 @@ def test_nan_padding_and_separate_messages_are_accepted(run_exe, ros):
 
 @pytest.mark.timeout(180)
 def test_velocity_command_float64_and_its_timeout_hold_the_load(run_exe, ros):
-    # tr8x8 back-drives: without a drive holding it the vertical load would fall.
-    proc = start_node(run_exe, 'preset:=tr8x8', 'command_timeout:=0.3')
-    states = ros.collect(JointState, 'joint_states')
+    # tr8x8 back-drives: without a drive holding it the vertical load would fall. It falls
+    # before the first command, past the preset's overspeed trip: off here.
+    proc = start_node(run_exe, 'preset:=tr8x8', 'command_timeout:=0.3', 'max_screw_velocity:=0.0')
+    states = ros.collect(JointState, 'axis/joint_states')
     wait_states(ros, states, proc)
     pub = command_publisher(ros, 'velocity_command')
     x0 = nut(states)
@@ -130,7 +131,7 @@ def test_switches_are_latched_topics_and_clear_fault_answers(run_exe):
     ros = Ros()
     try:
         got = {t: [] for t in ('limit_switch/min', 'limit_switch/max', 'home_switch')}
-        states = ros.collect(JointState, 'joint_states')
+        states = ros.collect(JointState, 'axis/joint_states')
         wait_states(ros, states, proc)
         ros.spin_for(0.5)
         for topic, out in got.items():       # a late subscriber gets the state at once

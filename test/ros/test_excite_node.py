@@ -87,7 +87,7 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     assert 'excite: done' in r.stdout
     time.sleep(DRAIN_S)         # the node takes the last commands at its next ticks
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
-    rec = read(recording(tmp_path, 'ex'), ('/position_command', '/joint_states'))
+    rec = read(recording(tmp_path, 'ex'), ('/position_command', '/axis/joint_states'))
 
     # Every command sent is in the file, once, in order, with the profile's value
     # at its time k / rate, logged on the node's tick grid in increasing time.
@@ -103,8 +103,8 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
     assert all(b >= a for (a, _), (b, _) in zip(cmds, cmds[1:]))
 
     # The nut followed: at the end of each dwell (a run of one target for at
-    # least 0.4 s) the last joint_states of the run is within tolerance of it.
-    states = [(lt, d.position[1]) for lt, d in rec['/joint_states']]
+    # least 0.4 s) the last axis/joint_states of the run is within tolerance of it.
+    states = [(lt, d.position[1]) for lt, d in rec['/axis/joint_states']]
     times = [lt for lt, _x in states]
     dwells, start = [], 0
     for i in range(1, len(cmds) + 1):
@@ -132,7 +132,7 @@ def test_iso230_over_dds_is_recorded_and_the_nut_reaches_the_targets(run_exe, tm
 def test_breakaway_in_a_namespace_through_joint_commands_stops_once_the_nut_moved(
         run_exe, tmp_path):
     # A prefixed axis in a namespace, commanded as ros2_control would (JointState
-    # on joint_commands, effort of <prefix>screw_joint). The exciter follows the
+    # on axis/joint_commands, effort of <prefix>screw_joint). The exciter follows the
     # node's nut_position and returns to the centre torque once the nut moved
     # abort_travel on a ramp.
     node = start_recording_node(run_exe, tmp_path, 'preset:=tr12x3', 'joint_prefix:=z_',
@@ -145,8 +145,9 @@ def test_breakaway_in_a_namespace_through_joint_commands_stops_once_the_nut_move
     assert 'no nut_position received' not in r.stdout, r.stdout
     time.sleep(DRAIN_S)         # the node takes the last commands at its next ticks
     assert node.stop(signal.SIGINT, timeout=30) == 0, node.output()
-    rec = read(recording(tmp_path, 'ex'), ('/ax1/joint_commands', '/ax1/joint_states'))
-    cmds = rec['/ax1/joint_commands']
+    rec = read(recording(tmp_path, 'ex'),
+               ('/ax1/axis/joint_commands', '/ax1/axis/joint_states'))
+    cmds = rec['/ax1/axis/joint_commands']
     assert [(tuple(d.name), tuple(d.effort)) for _lt, d in cmds] == \
         [(('z_screw_joint',), (v,)) for _k, _t, v in sent]
     prof = make_profile('breakaway', load_preset('tr12x3'), **options)
@@ -159,8 +160,8 @@ def test_breakaway_in_a_namespace_through_joint_commands_stops_once_the_nut_move
     assert aborted, 'no ramp ended early'
     assert max(v for *_x, v in sent) < center + peak and min(v for *_x, v in sent) > \
         center - peak
-    x = [d.position[1] for _lt, d in rec['/ax1/joint_states']]
-    assert tuple(rec['/ax1/joint_states'][0][1].name) == ('z_screw_joint', 'z_nut_joint')
+    x = [d.position[1] for _lt, d in rec['/ax1/axis/joint_states']]
+    assert tuple(rec['/ax1/axis/joint_states'][0][1].name) == ('z_screw_joint', 'z_nut_joint')
     x0 = load_preset('tr12x3').initial_position
     # A torque-driven axis past breakaway accelerates (mu_k < mu_s): stopped within
     # 10 abort_travel (the wall-clock loop reacts within a few periods of 10 ms).

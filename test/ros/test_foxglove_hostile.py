@@ -35,7 +35,7 @@ def test_bad_clients_counted_and_rate_holds(run_exe):
     port = free_port()
     proc = start_node(run_exe, f'foxglove_port:={port}')
     watch = FoxgloveClient(port, timeout=60.0, proc=proc)
-    assert watch.wait_channels(['/diagnostics', '/joint_states']), proc.output()
+    assert watch.wait_channels(['/diagnostics', '/axis/joint_states']), proc.output()
     diag = watch.subscribe('/diagnostics')
     assert watch.poll_until(lambda: len(watch.data[diag]) >= 1, 5.0)
 
@@ -55,7 +55,7 @@ def test_bad_clients_counted_and_rate_holds(run_exe):
     bad.send(json.dumps({'op': 'advertise', 'channels': [
         {'id': 1, 'topic': 'torque_command', 'encoding': 'cdr',
          'schemaName': 'std_msgs/msg/Float64'},
-        {'id': 2, 'topic': 'joint_states', 'encoding': 'cdr',
+        {'id': 2, 'topic': 'axis/joint_states', 'encoding': 'cdr',
          'schemaName': 'sensor_msgs/msg/JointState'}]}))
     time.sleep(0.2)
     bad.send_binary(b'\x01' + struct.pack('<I', 1) + b'\x00\x01\x00\x00' + bytes(200_000))
@@ -68,7 +68,7 @@ def test_bad_clients_counted_and_rate_holds(run_exe):
     assert watch.poll_until(lambda: time.monotonic() > t_end and int(
         diagnostics(watch, diag)[-1]['foxglove_outbox_full_reports']) >= 1, 30.0), (
         diagnostics(watch, diag)[-1])
-    js = watch.subscribe('/joint_states')
+    js = watch.subscribe('/axis/joint_states')
     assert watch.poll_until(lambda: len(watch.data[js]) >= 200, 5.0), 'the watcher starved'
     last = diagnostics(watch, diag)[-1]
     assert proc.proc.poll() is None, proc.output()

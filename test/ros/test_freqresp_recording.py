@@ -138,8 +138,9 @@ def runs(tmp_path_factory):
     ('chirp', dict(output='following_error'), 'chirp.mcap: the output following_error '
      'needs position commands'),
     ('chirp', dict(screw_joint='z_screw'), 'chirp.mcap: no motor_velocity in the states on '
-     '/joint_states (joints z_screw, nut_joint)'),
-    ('chirp', dict(state_topic='/ax1/joint_states'), 'chirp.mcap: no topic /ax1/joint_states'),
+     '/axis/joint_states (joints z_screw, nut_joint)'),
+    ('chirp', dict(state_topic='/ax1/axis/joint_states'),
+     'chirp.mcap: no topic /ax1/axis/joint_states'),
     ('chirp', dict(fmin=100.0, fmax=10.0), '--fmax 10 Hz must exceed --fmin 100 Hz'),
     ('still', dict(), 'still.mcap: no excitation: velocity_command holds 0.001 throughout'),
     ('nothing', dict(), 'nothing.mcap: no such file'),
@@ -193,7 +194,7 @@ def foreign_copy(src, dst):
     from leadscrew_sim.io.mcap_reader import Recording
     from leadscrew_sim.io.msgdefs import ros2msg_definition
     from mcap_ros2.writer import Writer
-    rec = Recording(src, topics=['/joint_states', '/velocity_command'])
+    rec = Recording(src, topics=['/axis/joint_states', '/velocity_command'])
     rename = {'screw_joint': 'j_motor', 'nut_joint': 'j_carriage'}
     with open(dst, 'wb') as f:
         w = Writer(f)
@@ -201,7 +202,7 @@ def foreign_copy(src, dst):
                                ros2msg_definition('sensor_msgs/msg/JointState'))
         fl = w.register_msgdef('std_msgs/msg/Float64', ros2msg_definition('std_msgs/msg/Float64'))
         for t, topic, data in rec.messages:
-            if topic == '/joint_states':
+            if topic == '/axis/joint_states':
                 stamp, names, pos, vel, eff = cdr.decode_joint_state(data)
                 msg = {'header': {'stamp': {'sec': stamp // 10 ** 9,
                                             'nanosec': stamp % 10 ** 9}, 'frame_id': ''},

@@ -251,9 +251,9 @@ def test_single_axis_in_a_namespace(launch, probe, prefix, tmp_path):
     runs = tmp_path / 'runs'
     proc = launch(['leadscrew_sim.launch.py', 'namespace:=ax1', f'params_file:={params_file}',
                    f'record_dir:={runs}'], launch_env(prefix))
-    got = first_messages(probe, ['/ax1/joint_states'], proc)
-    assert '/ax1/joint_states' in got, proc.output()
-    msg = got['/ax1/joint_states']
+    got = first_messages(probe, ['/ax1/axis/joint_states'], proc)
+    assert '/ax1/axis/joint_states' in got, proc.output()
+    msg = got['/ax1/axis/joint_states']
     assert list(msg.name) == ['screw_joint', 'nut_joint']
     assert all(math.isfinite(v) for v in (*msg.position, *msg.velocity, *msg.effort))
     # The file's values reach the namespaced node (its key is /**).
@@ -272,11 +272,11 @@ def test_single_axis_in_a_namespace(launch, probe, prefix, tmp_path):
 def test_gantry_two_axes(launch, probe, prefix, tmp_path):
     runs = tmp_path / 'runs'
     proc = launch(['gantry.launch.py', f'record_dir:={runs}'], launch_env(prefix))
-    topics = ['/x_axis/joint_states', '/y_axis/joint_states']
+    topics = ['/x_axis/axis/joint_states', '/y_axis/axis/joint_states']
     got = first_messages(probe, topics, proc)
     assert sorted(got) == topics, proc.output()
-    assert list(got['/x_axis/joint_states'].name) == ['x_screw_joint', 'x_nut_joint']
-    assert list(got['/y_axis/joint_states'].name) == ['y_screw_joint', 'y_nut_joint']
+    assert list(got['/x_axis/axis/joint_states'].name) == ['x_screw_joint', 'x_nut_joint']
+    assert list(got['/y_axis/axis/joint_states'].name) == ['y_screw_joint', 'y_nut_joint']
     assert get_parameter(probe, '/x_axis/leadscrew_sim_node', 'joint_prefix') == 'x_'
     rc = proc.ctrl_c()
     assert_clean_exit(proc, rc, processes=2)
@@ -339,14 +339,16 @@ def test_robot_state_publisher_gets_the_urdf_of_the_preset(launch, probe, prefix
     proc = launch(['leadscrew_sim.launch.py', 'namespace:=ax2', 'joint_prefix:=z_',
                    'preset:=tr8x8', f'params_file:={params_file}',
                    f'record_dir:={tmp_path / "runs"}', 'robot_state_publisher:=true'], env)
-    got = first_messages(probe, ['/ax2/joint_states'], proc)
-    assert '/ax2/joint_states' in got, proc.output()
-    assert list(got['/ax2/joint_states'].name) == ['z_screw_joint', 'z_nut_joint'], \
+    got = first_messages(probe, ['/ax2/axis/joint_states'], proc)
+    assert '/ax2/axis/joint_states' in got, proc.output()
+    assert list(got['/ax2/axis/joint_states'].name) == ['z_screw_joint', 'z_nut_joint'], \
         proc.output()
     # The stand-in is ready for SIGINT once its output exists.
     assert probe.spin_until(out.is_file, 30.0), proc.output()
     rsp = json.loads(out.read_text())
     assert '__ns:=/ax2' in rsp['argv']
+    # It listens to the node's states (its own joint_states remapped to axis/joint_states).
+    assert 'joint_states:=axis/joint_states' in rsp['argv'], rsp['argv']
     robot = yourdfpy.URDF.load(io.StringIO(rsp['parameters']['robot_description']),
                                build_collision_scene_graph=False, load_meshes=False,
                                load_collision_meshes=False)
@@ -365,7 +367,7 @@ def test_ctrl_c_ends_every_node_cleanly_ten_times_in_ten(launch, probe, prefix, 
     # Ctrl-C reaches each node twice (from the terminal's process group, then relayed by
     # launch); a second SIGINT during teardown must not end a node with -2. Half of the
     # tries record (a file to close), half do not (a quick exit, the racier case).
-    topics = ['/x_axis/joint_states', '/y_axis/joint_states']
+    topics = ['/x_axis/axis/joint_states', '/y_axis/axis/joint_states']
     for attempt in range(10):
         record = 'true' if attempt % 2 else 'false'
         proc = launch(['gantry.launch.py', f'record:={record}',
@@ -504,10 +506,10 @@ def test_colcon_build_source_and_ros2_run(ros2, colcon, probe, tmp_path):
                             stderr=subprocess.STDOUT, start_new_session=True)
     run = type('Run', (), {'proc': proc})
     try:
-        got = first_messages(probe, ['/joint_states'], run, timeout=60.0)
+        got = first_messages(probe, ['/axis/joint_states'], run, timeout=60.0)
         output = (tmp_path / 'run.log').read_text(errors='replace')
-        assert '/joint_states' in got, output
-        assert list(got['/joint_states'].name) == ['screw_joint', 'nut_joint']
+        assert '/axis/joint_states' in got, output
+        assert list(got['/axis/joint_states'].name) == ['screw_joint', 'nut_joint']
         os.killpg(proc.pid, signal.SIGINT)       # ros2 run does not forward SIGINT
         rc = proc.wait(timeout=30)
         assert rc == 0, (tmp_path / 'run.log').read_text(errors='replace')

@@ -44,7 +44,7 @@ def nut_direction(torque, preset='tr12x3'):
 @pytest.mark.timeout(90)
 def test_torque_step_moves_nut_in_documented_direction(run_exe, ros, tmp_path):
     proc = start_node(run_exe, f'record_dir:={tmp_path}', 'record_prefix:=t1', record=True)
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     xs = ros.collect(Float64, 'nut_position')
     wait_states(ros, states, proc)
     pub = command_publisher(ros)
@@ -83,16 +83,16 @@ def test_torque_step_moves_nut_in_documented_direction(run_exe, ros, tmp_path):
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
         ticks = {}                  # log time -> {topic: decoded message}
         for _s, channel, message, decoded in reader.iter_decoded_messages(
-                topics=['/joint_states', '/nut_position']):
+                topics=['/axis/joint_states', '/nut_position']):
             ticks.setdefault(message.log_time, {})[channel.topic] = decoded
     # nut_position and the nut_joint position of the same tick agree exactly (the file
     # holds both at the tick's log time; a live subscriber may miss some under load).
-    pairs = [(t['/nut_position'].data, t['/joint_states'].position[1]) for t in ticks.values()
+    pairs = [(t['/nut_position'].data, t['/axis/joint_states'].position[1]) for t in ticks.values()
              if len(t) == 2]
     assert len(pairs) > 500
     assert all(a == b for a, b in pairs), [p for p in pairs if p[0] != p[1]][:3]
     assert len({b for _a, b in pairs}) > 100      # the nut moved: the check has teeth
-    assert topics['/joint_states'] >= len(states)
+    assert topics['/axis/joint_states'] >= len(states)
     assert topics['/torque_command'] > 0
     assert meta['leadscrew_sim_parameters']['preset'] == 'tr12x3'
     assert meta['leadscrew_sim_parameters']['clock_mode'] == 'realtime'
@@ -102,10 +102,10 @@ def test_torque_step_moves_nut_in_documented_direction(run_exe, ros, tmp_path):
 @pytest.mark.timeout(60)
 def test_joint_commands_like_topic_based_ros2_control(run_exe, ros):
     proc = start_node(run_exe)
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     diags = ros.collect(DiagnosticArray, 'diagnostics', qos=10)
     wait_states(ros, states, proc)
-    pub = command_publisher(ros, 'joint_commands', JointState)
+    pub = command_publisher(ros, 'axis/joint_commands', JointState)
     start = len(states)
     msg = JointState(name=['screw_joint'], effort=[-0.4])
     assert publish_until(ros, pub, msg, lambda: -0.4 in [s.effort[0] for s in states[start:]])
@@ -144,7 +144,7 @@ def test_realtime_rate_and_stamps(run_exe, ros, tmp_path):
     def on_raw(data):
         raw.append((time.monotonic(), data))
 
-    ros.node.create_subscription(JointState, 'joint_states', on_raw, DEEP, raw=True)
+    ros.node.create_subscription(JointState, 'axis/joint_states', on_raw, DEEP, raw=True)
     wait_states(ros, raw, proc)
     ros.spin_for(1.0)                   # settle
     raw.clear()
@@ -164,7 +164,7 @@ def test_realtime_rate_and_stamps(run_exe, ros, tmp_path):
 def test_stepped_mode_publishes_clock(run_exe, ros):
     proc = start_node(run_exe, 'clock_mode:=stepped', 'real_time_factor:=0.5')
     sim = ros.add_node('sim_time_probe', [Parameter('use_sim_time', value=True)])
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     wait_states(ros, states, proc)
     assert stamp_ns(states[0]) < 30 * 1_000_000_000      # sim time starts at 0
     samples = []
@@ -187,9 +187,9 @@ def lockstep_run(run_exe, commands):
     ros = Ros()
     try:
         proc = start_node(run_exe, 'clock_mode:=lockstep', 'preset:=stick_slip')
-        states = ros.collect(JointState, 'joint_states')
+        states = ros.collect(JointState, 'axis/joint_states')
         pub = command_publisher(ros, timeout=30.0)
-        assert ros.spin_until(lambda: ros.node.count_publishers('/joint_states') > 0, 10.0)
+        assert ros.spin_until(lambda: ros.node.count_publishers('/axis/joint_states') > 0, 10.0)
         ros.spin_for(0.5)
         assert not states                      # nothing happens without commands
         for k, torque in enumerate(commands):
@@ -226,7 +226,7 @@ def test_invalid_parameters(run_exe, ros):
     assert 'backlash' in out and 'Traceback' not in out, out
 
     proc = start_node(run_exe)
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     wait_states(ros, states, proc)
     res = ros.call(SetParameters, f'{NODE}/set_parameters',
                    SetParameters.Request(parameters=[param_msg('mu_s', -1.0)]))
@@ -282,7 +282,7 @@ while True:
 def test_watchdog_zeroes_torque_after_command_timeout(run_exe, ros, tmp_path):
     timeout_s = 0.5
     proc = start_node(run_exe, f'command_timeout:={timeout_s}')
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     wait_states(ros, states, proc)
     log = open(tmp_path / 'commander.log', 'wb')
     cmd = subprocess.Popen([sys.executable, '-c', PUBLISHER], stdout=log,
@@ -311,12 +311,12 @@ def test_watchdog_zeroes_torque_after_command_timeout(run_exe, ros, tmp_path):
 @pytest.mark.timeout(60)
 def test_non_finite_commands_are_rejected(run_exe, ros):
     proc = start_node(run_exe)
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     diags = ros.collect(DiagnosticArray, 'diagnostics', qos=10)
     wait_states(ros, states, proc)
     pub = command_publisher(ros)
     fpub = command_publisher(ros, 'external_force')
-    jpub = command_publisher(ros, 'joint_commands', JointState)
+    jpub = command_publisher(ros, 'axis/joint_commands', JointState)
     pub.publish(Float64(data=0.01))
     assert ros.spin_until(lambda: states[-1].effort[0] == 0.01, 5.0)
     for _ in range(3):

@@ -34,15 +34,15 @@ from std_srvs.srv import Trigger
 #: The mcap CLI, an independent reader and checker (absent in a user's clone).
 MCAP_CLI = SHARED / 'mcap-cli' / 'mcap'
 
-#: QoS of the joint_states subscriptions of this module (deeper than helpers.DEEP).
+#: QoS of the axis/joint_states subscriptions of this module (deeper than helpers.DEEP).
 DEEP = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
 
 #: Recorded topics of a realtime run -> message type.
 TYPES = {
     '/torque_command': 'std_msgs/msg/Float64',
-    '/joint_commands': 'sensor_msgs/msg/JointState',
+    '/axis/joint_commands': 'sensor_msgs/msg/JointState',
     '/external_force': 'std_msgs/msg/Float64',
-    '/joint_states': 'sensor_msgs/msg/JointState',
+    '/axis/joint_states': 'sensor_msgs/msg/JointState',
     '/nut_position': 'std_msgs/msg/Float64',
     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
     '/sim/joint_states': 'sensor_msgs/msg/JointState',
@@ -53,7 +53,7 @@ TYPES = {
     '/limit_switch/min': 'std_msgs/msg/Bool',
     '/limit_switch/max': 'std_msgs/msg/Bool',
     '/home_switch': 'std_msgs/msg/Bool',
-    '/robot_description': 'std_msgs/msg/String',
+    '/axis/robot_description': 'std_msgs/msg/String',
     '/tf_static': 'tf2_msgs/msg/TFMessage',
     '/tf': 'tf2_msgs/msg/TFMessage',
 }
@@ -85,12 +85,12 @@ def bits(values):
 
 
 class Live(Ros):
-    """The helpers.Ros helper plus joint_states capture with receive times."""
+    """The helpers.Ros helper plus axis/joint_states capture with receive times."""
 
     def states(self):
-        """Subscribe to joint_states; return the list of (receive time.time_ns(), msg)."""
+        """Subscribe to axis/joint_states; return the list of (receive time.time_ns(), msg)."""
         out = []
-        self.node.create_subscription(JointState, 'joint_states',
+        self.node.create_subscription(JointState, 'axis/joint_states',
                                       lambda m: out.append((time.time_ns(), m)), DEEP)
         return out
 
@@ -178,23 +178,24 @@ def realtime_run(tmp_path_factory):
     """
     Run the node in realtime mode for ~2 s with commands, stop it with SIGINT.
 
-    Returns dict(path, states (live joint_states), sent {topic: [values]}, log).
+    Returns dict(path, states (live axis/joint_states), sent {topic: [values]}, log).
     """
     tmp = tmp_path_factory.mktemp('realtime')
-    proc = NodeProcess(node_argv(tmp, 'rt'), tmp / 'node.log')
+    # the torques run the axis past the preset's overspeed trip: off here (max_screw_velocity 0)
+    proc = NodeProcess(node_argv(tmp, 'rt', 'max_screw_velocity:=0.0'), tmp / 'node.log')
     lv = Live()
     try:
         states = lv.states()
         wait_states(lv, states, proc)
         pub_t = lv.publisher(Float64, 'torque_command')
-        pub_j = lv.publisher(JointState, 'joint_commands')
+        pub_j = lv.publisher(JointState, 'axis/joint_commands')
         pub_f = lv.publisher(Float64, 'external_force')
-        sent = {'/torque_command': [], '/joint_commands': [], '/external_force': []}
+        sent = {'/torque_command': [], '/axis/joint_commands': [], '/external_force': []}
         for k in range(40):
             if k % 10 == 5:
                 value = -0.011 * k
                 pub_j.publish(JointState(name=['screw_joint'], effort=[value]))
-                sent['/joint_commands'].append((('screw_joint',), (value,)))
+                sent['/axis/joint_commands'].append((('screw_joint',), (value,)))
             else:
                 value = 0.2 * math.sin(k / 4.0) + 1e-9 * k      # all distinct
                 pub_t.publish(Float64(data=value))
@@ -239,15 +240,15 @@ def test_realtime_recording_read_back_by_mcap_and_rosbags(realtime_run):
 
     # The parameters record holds every physics parameter, with the preset's values.
     params = meta['leadscrew_sim_parameters']
-    preset = load_preset('tr12x3')
+    preset = load_preset('tr12x3', max_screw_velocity=0.0)     # and the run's override
     for name, public in zip(ScrewParams.names(), ScrewParams.parameter_names()):
         assert params[public] == str(getattr(preset, name)), public
     assert params['clock_mode'] == 'realtime' and params['dt_ns'] == str(MS)
     t0 = int(params['t0_ns'])
 
-    # joint_states: on the dt grid from t0, log time = header stamp, no gap,
+    # axis/joint_states: on the dt grid from t0, log time = header stamp, no gap,
     # and equal to what the live subscriber received.
-    rec = [(lt, js_key(d)) for t, _s, lt, d in msgs if t == '/joint_states']
+    rec = [(lt, js_key(d)) for t, _s, lt, d in msgs if t == '/axis/joint_states']
     assert all(lt == key[0] and (lt - t0) % MS == 0 for lt, key in rec)
     stamps = [key[0] for _lt, key in rec]
     assert {b - a for a, b in zip(stamps, stamps[1:])} == {MS}
@@ -261,13 +262,13 @@ def test_realtime_recording_read_back_by_mcap_and_rosbags(realtime_run):
     cmds = {t: [(lt, d) for tt, _s, lt, d in msgs if tt == t] for t in sent}
     assert [d.data for _lt, d in cmds['/torque_command']] == sent['/torque_command']
     assert [d.data for _lt, d in cmds['/external_force']] == sent['/external_force']
-    assert [(tuple(d.name), tuple(d.effort)) for _lt, d in cmds['/joint_commands']] == \
-        sent['/joint_commands']
+    assert [(tuple(d.name), tuple(d.effort)) for _lt, d in cmds['/axis/joint_commands']] == \
+        sent['/axis/joint_commands']
     assert all((lt - t0) % MS == 0 for c in cmds.values() for lt, _d in c)
     # A torque command logged at t acts on the step [t, t + dt): the state stamped
     # t + dt reports it as the motor torque (torque_lag 0, below max_torque).
     torque_cmds = [(lt, d.data) for lt, d in cmds['/torque_command']] + \
-        [(lt, d.effort[0]) for lt, d in cmds['/joint_commands']]
+        [(lt, d.effort[0]) for lt, d in cmds['/axis/joint_commands']]
     times = [lt for lt, _v in torque_cmds]
     checked = 0
     for lt, value in torque_cmds:
@@ -281,7 +282,7 @@ def test_realtime_recording_read_back_by_mcap_and_rosbags(realtime_run):
     assert sorted((t, lt) for t, _ty, lt, _d in bag) == sorted(
         (t, lt) for t, _s, lt, _d in msgs)
     assert {t: ty for t, ty, _lt, _d in bag} == SENT_TYPES
-    bag_js = {js_key(d)[0]: js_key(d) for t, _ty, _lt, d in bag if t == '/joint_states'}
+    bag_js = {js_key(d)[0]: js_key(d) for t, _ty, _lt, d in bag if t == '/axis/joint_states'}
     assert bag_js == recorded
     bag_tq = [d.data for t, _ty, _lt, d in bag if t == '/torque_command']
     assert bag_tq == sent['/torque_command']
@@ -290,9 +291,9 @@ def test_realtime_recording_read_back_by_mcap_and_rosbags(realtime_run):
 @pytest.mark.timeout(90)
 def test_play_node_recording_delivers_every_joint_state_in_order(realtime_run, live):
     path = realtime_run['path']
-    expected = [js_key(d) for t, _s, _lt, d in read_mcap(path)[0] if t == '/joint_states']
+    expected = [js_key(d) for t, _s, _lt, d in read_mcap(path)[0] if t == '/axis/joint_states']
     got = []
-    live.node.create_subscription(JointState, 'joint_states', lambda m: got.append(js_key(m)),
+    live.node.create_subscription(JointState, 'axis/joint_states', lambda m: got.append(js_key(m)),
                                   DEEP)
     log = open(Path(path).with_suffix('.play.log'), 'w')
     player = subprocess.Popen(
@@ -332,7 +333,7 @@ def test_sigterm_closes_the_recording(live, tmp_path):
     n = check_complete(path)
     assert f'({path.stat().st_size} B, {n} messages)' in log_text(proc), log_text(proc)
     recorded = {js_key(d)[0]: js_key(d) for t, _s, _lt, d in read_mcap(path)[0]
-                if t == '/joint_states'}
+                if t == '/axis/joint_states'}
     got = {js_key(m)[0]: js_key(m) for _t, m in states}
     assert set(got) <= set(recorded)
     assert all(recorded[s] == got[s] for s in got)
@@ -376,7 +377,7 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
     check_complete(fixed, n)
     msgs, _summary, meta = read_mcap(fixed)
     assert 'leadscrew_sim_parameters' in meta
-    rec = {js_key(d)[0]: js_key(d) for t, _s, _lt, d in msgs if t == '/joint_states'}
+    rec = {js_key(d)[0]: js_key(d) for t, _s, _lt, d in msgs if t == '/axis/joint_states'}
     stamps = sorted(rec)
     bound = kill_log - int((FLUSH + MARGIN) * NS)
     lost = (kill_log - stamps[-1]) / NS
@@ -393,7 +394,7 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
     assert f'{n} messages' in r.stdout and 'stops being whole at byte' in r.stdout, r.stdout
     assert [m[:3] for m in read_mcap(verb)[0]] == [m[:3] for m in msgs]
     with AnyReader([verb]) as reader:            # an independent reader takes the copy
-        assert sum(1 for c in reader.connections if c.topic == '/joint_states') == 1
+        assert sum(1 for c in reader.connections if c.topic == '/axis/joint_states') == 1
         assert sum(1 for _ in reader.messages()) == n
     # info and resim read the cut file itself up to its last whole chunk, with a warning.
     for verb_args in (('info', path), ('resim', path, '-q', '-o', tmp_path / 'cut.resim.mcap')):
@@ -405,7 +406,7 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
                              text=True, timeout=60)
         assert doc.returncode == 0, doc.stdout + doc.stderr
         # The independent tool recovers the same file into one its own doctor accepts,
-        # with the same joint_states (its order of records is its own).
+        # with the same axis/joint_states (its order of records is its own).
         go = tmp_path / 'go.mcap'
         r = subprocess.run([str(MCAP_CLI), 'recover', str(path), '-o', str(go)],
                            capture_output=True, text=True, timeout=60)
@@ -413,7 +414,7 @@ def test_sigkill_of_node_and_recorder_recover_within_flush_bound(live, tmp_path)
         doc = subprocess.run([str(MCAP_CLI), 'doctor', str(go)], capture_output=True,
                              text=True, timeout=60)
         assert doc.returncode == 0, doc.stdout + doc.stderr
-        go_js = {js_key(d)[0] for t, _s, _lt, d in read_mcap(go)[0] if t == '/joint_states'}
+        go_js = {js_key(d)[0] for t, _s, _lt, d in read_mcap(go)[0] if t == '/axis/joint_states'}
         assert go_js == set(rec)
 
 
@@ -444,7 +445,7 @@ def test_sigkill_of_node_alone_leaves_a_closed_file(live, tmp_path):
                 raise
             time.sleep(0.1)
     rec = {js_key(d)[0]: js_key(d) for t, _s, _lt, d in read_mcap(path)[0]
-           if t == '/joint_states'}
+           if t == '/axis/joint_states'}
     # Only what the node had not yet written to the pipe is lost (a tick or so).
     bound = kill_log - int(0.1 * NS)
     print(f'{n} messages; joint_states up to {(kill_log - max(rec)) / NS:.3f} s '
@@ -486,13 +487,14 @@ def lockstep_commands(n):
 @pytest.mark.timeout(150)
 def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     commands = lockstep_commands(300)
-    proc = NodeProcess(node_argv(tmp_path, 'ls', 'clock_mode:=lockstep', 'preset:=stick_slip'),
-                       tmp_path / 'node.log')
+    # the torques run the axis past the preset's overspeed trip: off here (max_screw_velocity 0)
+    proc = NodeProcess(node_argv(tmp_path, 'ls', 'clock_mode:=lockstep', 'preset:=stick_slip',
+                                 'max_screw_velocity:=0.0'), tmp_path / 'node.log')
     try:
         states = live.states()
         pub = live.publisher(Float64, 'torque_command')
         fpub = live.publisher(Float64, 'external_force')
-        assert live.spin_until(lambda: live.node.count_publishers('/joint_states') > 0, 10.0)
+        assert live.spin_until(lambda: live.node.count_publishers('/axis/joint_states') > 0, 10.0)
         for k, torque in enumerate(commands):
             if k in (50, 200):
                 fpub.publish(Float64(data=-40.0 if k == 50 else 0.0))
@@ -513,7 +515,7 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     check_complete(path)
     live_js = [js_key(m) for _t, m in states]
     assert [s[0] for s in live_js] == [(k + 1) * MS for k in range(len(commands))]
-    recorded = [js_key(d) for t, _s, _lt, d in read_mcap(path)[0] if t == '/joint_states']
+    recorded = [js_key(d) for t, _s, _lt, d in read_mcap(path)[0] if t == '/axis/joint_states']
     assert recorded == live_js
     # The recorded efforts are the commands, bit for bit (+0.0 for -0.0: the node
     # normalizes the sign of a zero motor torque).
@@ -529,7 +531,7 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     assert all(mx == 0.0 and n == len(commands) for mx, n in rows.values()), rows
     assert overall == 0.0 and '(bit-identical)' in r.stdout
     # Independently of resim's own report: the states it wrote are the node's bytes.
-    for topic in ('/joint_states', '/nut_position', '/thread_force', '/sim/joint_states'):
+    for topic in ('/axis/joint_states', '/nut_position', '/thread_force', '/sim/joint_states'):
         assert raw_messages(out, topic) == raw_messages(path, topic), topic
 
     r = cli_ok('resim', path, '--set', 'backlash=2e-4', '--output', tmp_path / 'b.mcap',
@@ -537,7 +539,7 @@ def test_lockstep_recording_resim_is_bit_identical(live, tmp_path):
     rows, compared, overall = _resim_rows(r.stdout)
     assert compared == len(commands)
     assert overall > 0.0 and '(bit-identical)' not in r.stdout
-    assert rows[('/joint_states', 'position[nut_joint]')][0] > 0.0
+    assert rows[('/axis/joint_states', 'position[nut_joint]')][0] > 0.0
 
 
 def _aging_torque_run(live, tmp_path, prefix, timeout, on_tick=None):
@@ -552,7 +554,7 @@ def _aging_torque_run(live, tmp_path, prefix, timeout, on_tick=None):
     try:
         states = live.states()
         pub = live.publisher(Float64, 'torque_command')
-        jpub = live.publisher(JointState, 'joint_commands')
+        jpub = live.publisher(JointState, 'axis/joint_commands')
         for k in range(13):
             if on_tick is not None:
                 on_tick(k)

@@ -3,7 +3,7 @@ Sensor delays, lost messages and injected faults of the node over DDS, from anot
 
 The node runs as a real process (fixture ``run_exe``) on the session's isolated
 domain. The test process commands it, changes the ``fault.*`` parameters through
-``rcl_interfaces/SetParameters`` and reads ``joint_states`` (what the sensors
+``rcl_interfaces/SetParameters`` and reads ``axis/joint_states`` (what the sensors
 report, possibly late or lost) against ``sim/joint_states`` (the truth: every
 tick, never delayed). Most tests run in lockstep mode: one tick per received
 torque command and the state of tick n stamped n dt (dt = 1 ms at the default
@@ -77,7 +77,8 @@ class Axis:
         self.proc = start_node(run_exe, f'clock_mode:={mode}', *AXIS, *params, record=record)
         self.states, self.truth, self.diags = [], [], []
         node = ros.node
-        subs = [node.create_subscription(JointState, 'joint_states', self.states.append, DEEP),
+        subs = [node.create_subscription(JointState, 'axis/joint_states', self.states.append,
+                                         DEEP),
                 node.create_subscription(JointState, 'sim/joint_states', self.truth.append,
                                          DEEP)]
         node.create_subscription(DiagnosticArray, 'diagnostics', self.diags.append, 50)
@@ -167,7 +168,7 @@ def motor_efforts(truth):
 
 @pytest.mark.timeout(60)
 def test_state_delay_delivers_the_truth_of_d_ticks_ago(run_exe, ros):
-    """joint_states at tick n has stamp and true values of tick n - d; the truth is never late."""
+    """axis/joint_states at tick n: stamp and true values of tick n - d; the truth: never late."""
     d, r, n = 3, 1e-6, 60
     # Ideal encoder (exact truth), quantised linear scale of resolution r. With the default
     # drive_rate (4000 Hz) a tr12x3 step has 18 substeps and a drive period 5 of them, so
@@ -201,7 +202,7 @@ def test_state_delay_delivers_the_truth_of_d_ticks_ago(run_exe, ros):
         x, reading = t['nut_joint'][0], s['nut_joint'][0]
         assert -1e-15 <= x - reading < r + 1e-15, (stamp_ns(m), x, reading)
         assert abs(reading / r - round(reading / r)) < 1e-6
-        # Axial force: the total (joint_states) and nut A's share (truth) agree without a
+        # Axial force: the total (axis/joint_states) and nut A's share (truth) agree without a
         # split nut up to the rounding of the sum of the contact terms.
         assert abs(s['nut_joint'][2] - t['nut_joint'][2]) <= 1e-9 * (1.0 + abs(t['nut_joint'][2]))
     # Not vacuous: the nut crossed many scale quanta and the screw turned.
@@ -227,7 +228,7 @@ def test_command_delay_acts_d_ticks_later(run_exe, ros):
     # i gets the command sent before it; the d commands still under way are superseded.
     expected = [0.0] * d + first[:-d] + second
     assert motor_efforts(ax.truth) == expected
-    # joint_states (no state delay) reports the same applied torque on the same stamps.
+    # axis/joint_states (no state delay) reports the same applied torque on the same stamps.
     assert [(stamp_ns(m), joints(m)['screw_joint'][2]) for m in ax.states] == [
         ((i + 1) * MS, e) for i, e in enumerate(expected)]
 
@@ -238,7 +239,7 @@ def test_command_delay_acts_d_ticks_later(run_exe, ros):
 
 @pytest.mark.timeout(90)
 def test_state_drops_follow_the_binomial_bound_and_stop_at_rate_zero(run_exe, ros):
-    """With fault.state_drop_rate p, N p +- 3 sigma of N ticks lack joint_states; rate 0: none."""
+    """With fault.state_drop_rate p, N p +- 3 sigma of N ticks lack axis/joint_states; 0: none."""
     seed, p = 5, 0.3
     na, nb, nc = 100, 2000, 200
     ax = Axis(run_exe, ros, f'sensor_seed:={seed}')
@@ -464,7 +465,7 @@ def test_faulted_lockstep_recording_resim_is_bit_identical(run_exe, ros, tmp_pat
                    if rec.name == UPDATE_RECORD]
     truth = [(lt, d) for t, lt, d in msgs if t == '/sim/joint_states']
     assert [(lt, stamp_ns(d)) for lt, d in truth] == [(j * MS, j * MS) for j in range(1, n + 1)]
-    sensor = [(lt, d) for t, lt, d in msgs if t == '/joint_states']
+    sensor = [(lt, d) for t, lt, d in msgs if t == '/axis/joint_states']
     # Logged when delivered: state_delay ticks after the stamp; some lost between the
     # changes of fault.state_drop_rate (ticks 101 .. 500), none elsewhere.
     assert all(lt == stamp_ns(d) + delay * MS for lt, d in sensor)

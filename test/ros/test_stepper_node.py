@@ -1,7 +1,7 @@
 """
 The stepper axis over DDS from another process (interfaces.md, "Stepper drive (v3)").
 
-The node runs as a real process. Oracles: joint_states is what the
+The node runs as a real process. Oracles: axis/joint_states is what the
 controller believes, the commanded step position, unless the motor has an
 encoder (then the encoder's count, within one count of the truth that
 sim/joint_states carries); a slipped rotor rests a whole number of electrical
@@ -54,10 +54,10 @@ def test_lost_steps_reported_recorded_and_resimulated(tmp_path):
                        tmp_path / 'node.log')
     ros = Ros()
     try:
-        states = ros.collect(JointState, 'joint_states')
+        states = ros.collect(JointState, 'axis/joint_states')
         truth = ros.collect(JointState, 'sim/joint_states')
         diags = ros.collect(DiagnosticArray, 'diagnostics')
-        pub = command_publisher(ros, 'joint_commands', JointState, timeout=30.0)
+        pub = command_publisher(ros, 'axis/joint_commands', JointState, timeout=30.0)
         tpub = command_publisher(ros, 'torque_command')
         p = load_preset('nema17_tr8x8')
         v_fast = 8000.0 * STEP * p.lead_ratio            # [m/s], up: above pull-out
@@ -82,7 +82,7 @@ def test_lost_steps_reported_recorded_and_resimulated(tmp_path):
     assert abs(off - 4.0 * round(off / 4.0)) < 0.5, off
     lost = 4 * round(off / 4.0)
     assert lost != 0
-    # joint_states' nut is the commanded angle through the lead (no scale): it went up
+    # axis/joint_states' nut is the commanded angle through the lead (no scale): it went up
     assert states[-1].position[1] > 0.05
     assert truth[-1].position[names.index('nut_joint')] < states[-1].position[1]
     last = diag_values(diags[-1])
@@ -104,11 +104,11 @@ def test_lost_steps_reported_recorded_and_resimulated(tmp_path):
 
 @pytest.mark.timeout(180)
 def test_encoder_reports_the_rotor_and_torque_is_refused(run_exe, ros):
-    """With encoder_counts > 0 joint_states is the encoder, within a count of the truth."""
+    """With encoder_counts > 0 axis/joint_states is the encoder, within a count of the truth."""
     counts = 4000
     proc = start_node(run_exe, 'preset:=nema17_tr8x8', f'encoder_counts:={counts}',
                       'command_timeout:=2.0')
-    states = ros.collect(JointState, 'joint_states')
+    states = ros.collect(JointState, 'axis/joint_states')
     truth = ros.collect(JointState, 'sim/joint_states')
     diags = ros.collect(DiagnosticArray, 'diagnostics')
     wait_states(ros, states, proc)
