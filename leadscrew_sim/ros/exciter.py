@@ -17,7 +17,7 @@ import signal
 import time
 
 from ..analysis.excitation.base import KIND_TOPICS
-from ..io.topics import resolve, TOPIC_SPECS
+from ..io.topics import graph_name, resolve, TOPIC_SPECS
 from ..core.errors import LeadscrewError
 
 __all__ = ['ExciteError', 'Exciter']
@@ -144,7 +144,7 @@ class Exciter:
         pubs = {}
         for topic in self._topics():
             msg_type, _role, qos = TOPIC_SPECS[topic]
-            pubs[topic] = node.create_publisher(message_class(msg_type), topic,
+            pubs[topic] = node.create_publisher(message_class(msg_type), graph_name(topic),
                                                 qos_profile(qos))
         pub = pubs[self.topic]
         name = resolve(self.topic, node.get_namespace())

@@ -307,9 +307,10 @@ def test_a_foreign_recording_by_its_topics(tmp_path_factory):
     for name, value, vd in zip(out['res'].names, out['res'].values, out['res'].verdicts):
         rel, _floor = TOLERANCE[name]
         assert vd.identified and abs(value - getattr(true, name)) <= rel * getattr(true, name)
-    _one_error_line(cli('identify', rec, '--state-topic', '/axis/joint_states'), '--command-topic')
+    # A Float64 topic whose name says no kind needs --command-kind (the node's command topics
+    # say theirs, and without --command-topic the node's own are taken: test_bag_own_topics).
     _one_error_line(cli('identify', rec, '--state-topic', '/axis/joint_states', '--command-topic',
-                        '/torque_command'), '--command-kind')
+                        '/nut_position'), '--command-kind')
 
 
 def test_a_fit_that_misses_the_recording_identifies_nothing(tmp_path_factory):

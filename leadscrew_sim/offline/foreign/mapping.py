@@ -11,6 +11,7 @@ import dataclasses
 import math
 
 from ...core import yamlio
+from ...io.topics import graph_name, TOPIC_SPECS
 from ..options import RunError
 
 
@@ -211,9 +212,21 @@ KIND_HINTS = (('position', 'position'), ('velocity', 'velocity'), ('effort', 'to
 
 
 def kind_from_name(topic):
-    """Return the command kind a topic's name says (``/velocity_controller/commands``), or None."""
+    """
+    Return the command kind a topic's name says (``/velocity_controller/commands``), or None.
+
+    None for the node's state topics: ``nut_position`` names a position it reports.
+    """
+    if is_state_topic(topic):
+        return None
     low = topic.lower()
     return next((k for h, k in KIND_HINTS if h in low), None)
+
+
+def is_state_topic(topic):
+    """Return whether ``topic`` is one of leadscrew_sim's state topics (in any namespace)."""
+    return any(topic == '/' + graph_name(k) or topic.endswith('/' + graph_name(k))
+               for k, (_t, role, _q) in TOPIC_SPECS.items() if role in ('state', 'switch'))
 
 
 def read_map_file(path):

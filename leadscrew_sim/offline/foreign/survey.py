@@ -9,10 +9,10 @@ command's kind are guessed from the names, and said to be guesses).
 """
 import numpy as np
 
-from .mapping import COMMAND_TYPES, FLOAT64, JOINT_STATE, MULTI_ARRAY, TRAJECTORY
+from .mapping import (COMMAND_TYPES, FLOAT64, is_state_topic, JOINT_STATE, MULTI_ARRAY,
+                      TRAJECTORY)
 from ..options import NS
 from ...io import cdr as C
-from ...io.topics import graph_name, TOPIC_SPECS
 
 #: Name parts that suggest a joint's role.
 SCREW_HINTS = ('screw', 'motor', 'rev', 'rot', 'spindle')
@@ -29,12 +29,6 @@ def _role(name):
     if any(h in low for h in SCREW_HINTS):
         return 'screw'
     return None
-
-
-def is_state_topic(topic):
-    """Return whether ``topic`` is one of leadscrew_sim's state topics (in any namespace)."""
-    return any(topic == '/' + graph_name(k) or topic.endswith('/' + graph_name(k))
-               for k, (_t, role, _q) in TOPIC_SPECS.items() if role in ('state', 'switch'))
 
 
 def foreign_lines(rec):
