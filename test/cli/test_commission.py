@@ -59,7 +59,9 @@ def commissioned(tmp_path_factory):
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = cli_ok('commission', rec, '-o', out)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # its CPU time, printed: speed is measured in bench/bench_commission.py, not asserted here
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    print(f'commission: {cpu:.1f} s of CPU')
     with open(out / 'report.json') as fh:
         report = json.load(fh)
     return rec, out, report, r.stderr, cpu
@@ -281,19 +283,6 @@ def test_the_mixed_run_re_simulates_bit_for_bit(commissioned):
     i = list(states[0][1]).index('nut_joint')
     recorded = np.array([s[2][i] for s in states])
     assert recorded.tobytes() == Resim(r).replay()['nut_position'].tobytes()
-
-
-def test_commission_within_a_minute(commissioned):
-    """
-    The whole commission of the default recording takes under 60 s of CPU time.
-
-    The command runs on one core (the fit's re-simulations in turn), so its
-    CPU time bounds its wall time on an idle two-core host; the wall time on
-    a shared test host says more about the other jobs (bench_commission
-    measures it).
-    """
-    _rec, _out, _report, _err, cpu = commissioned
-    assert cpu < 60.0, cpu
 
 
 def test_missing_segments_are_named(tmp_path):
