@@ -7,8 +7,7 @@ No friction law shows in that: the thread never slides, the screw never turns
 and the nut never moves by more than a micron. Oracles: the recording itself,
 read with mcap_ros2 (a reader we did not write), shows the nut's travel, and
 the parameter file must then hold no fitted value at all, exact data or not
-(before, it wrote bearing_coulomb 1.86e-12 N m and guide_coulomb 2.56e-11 N as
-"determined by exact data").
+(a fit on exact data finds values such as 1e-12 N m for them, which mean nothing).
 """
 from helpers import cli_ok
 from mcap_ros2.reader import read_ros2_messages

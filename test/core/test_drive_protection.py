@@ -58,7 +58,8 @@ def test_overspeed_trips_in_torque_mode_before_the_nut_reaches_the_end_stop():
     assert D.FAULT_NAMES[m.drive_fault()] == 'overspeed'
     # the fault acts from the next step on: the motor torque is off (the lag: none here)
     assert (r['motor_torque'][k + 1:] == 0.0).all()
-    # a self-locking axis stops within a few mm; it never reaches the stop 0.2 m away
+    # the torque off, the self-locking thread stops the axis within a few mm of the trip,
+    # far from the end stop 0.2 m away
     assert r['nut_position'].min() > p.stroke_min + 0.1
     assert abs(r['nut_velocity'][-1]) < 1e-6
     m.clear_fault()

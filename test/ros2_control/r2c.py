@@ -42,9 +42,9 @@ SETUP = SHARED / 'ros2_control' / 'setup.sh'
 NS = '/axis_under_test'
 JOINT_STATES = f'{NS}/joint_states'
 JOINT_COMMANDS = f'{NS}/joint_commands'
-#: The node's JointState pair remapped to those names, from its default relative names of
-#: now (axis/...) and before (the bare names): remapping a name the node does not use is
-#: harmless, and the tests do not depend on the node's defaults.
+#: The node's JointState pair remapped to those names, from its default relative names
+#: (axis/...) and the bare ones: remapping a name the node does not use is harmless, and
+#: the tests do not depend on the node's defaults.
 NODE_TOPIC_REMAPS = (('axis/joint_states', JOINT_STATES), ('axis/joint_commands', JOINT_COMMANDS),
                      ('joint_states', JOINT_STATES), ('joint_commands', JOINT_COMMANDS))
 #: The controller_manager's node name.
