@@ -47,6 +47,14 @@ def report(path, out):
              f'starting and fixed values from {out["label"]}',
              f'fitted against: {", ".join(meas.names)} (re-simulated without sensor noise '
              'and quantisation; each position signal with a free offset)']
+    if problem.foreign:
+        delay = problem.source.delay
+        lines.append(delay.line().replace('--command-delay sets it', 'the mapping sets it')
+                     if delay.how == 'set' else delay.line())
+        if problem.fit_delay:
+            lines.append(f'  fitted with the parameters: {problem.delay * 1e3:.3f} ms (each '
+                         f're-simulation aligned in time to the states within '
+                         f'+-{problem.shift_range * 1e3:.3g} ms of the estimate)')
     if getattr(problem, 'exact', False):
         lines.append('exact data (ideal sensors): no statistical intervals; each noise level '
                      'is the numerical floor, and a parameter that changes the signals by more '

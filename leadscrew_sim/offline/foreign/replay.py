@@ -208,11 +208,16 @@ class ForeignReplay:
         self.merged = int(np.count_nonzero(ok & ~later))
         self._inputs = None
 
-    def estimate_delay(self):
-        """Return the Delay estimated with the parameters (one re-simulation at delay 0)."""
+    def estimate_delay(self, overrides=None):
+        """
+        Return the Delay estimated with the parameters (one re-simulation at delay 0).
+
+        ``overrides``: parameter values [their units] that replace this replay's
+        (``identify`` estimates again at its fit).
+        """
         saved = self.delay
         self.set_delay(D.Delay(0.0, 0.0, 'trial'))
-        cols = self.replay({}, interpolate=False)
+        cols = self.replay(overrides or {}, interpolate=False)
         name = 'nut_position' if 'nut_position' in self.states.values else 'screw_angle'
         if name not in self.states.values:
             self.set_delay(saved)
@@ -276,15 +281,32 @@ class ForeignReplay:
             raise RunError(f're-simulation with {overrides}: {exc}') from None
         if not interpolate:
             return cols
+        return self.at_states(cols)
+
+    def at_states(self, cols, shift_ns=0):
+        """
+        Return ``cols`` (of :meth:`replay` without ``interpolate``) at the recorded states.
+
+        The sensor columns at each step that has a recorded state hold the
+        re-simulation at that state's stamp less ``shift_ns`` [ns]: a further
+        command-to-state delay (the model is time-invariant, so delaying the
+        commands delays the states alike); outside the run, its first or last
+        step.
+        """
         cols = dict(cols)
-        n_run = len(rows[:n])
+        n_run = len(next(iter(cols.values())))
+        k, frac = self.k, self.frac
+        if shift_ns:
+            rel = (k + 1) * self.dt_ns + np.round(frac * self.dt_ns) - int(shift_ns)
+            k = np.clip(rel // self.dt_ns - 1, 0, max(0, n_run - 2)).astype(np.int64)
+            frac = np.clip((rel - (k + 1) * self.dt_ns) / self.dt_ns, 0.0, 1.0)
         use = self.k < n_run - 1
         for column in ('sensor_screw_angle', 'sensor_nut_position', 'motor_torque',
                        'sensor_screw_velocity', 'sensor_nut_velocity', 'axial_force'):
-            if column not in cols:
+            if column not in cols or n_run < 2:
                 continue
             c = np.array(cols[column], dtype=float)
-            c[self.k[use]] = between(cols, column, self.k[use], self.frac[use], self.dt_ns)
+            c[self.k[use]] = between(cols, column, k[use], frac[use], self.dt_ns)
             cols[column] = c
         return cols
 

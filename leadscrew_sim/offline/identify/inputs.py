@@ -73,12 +73,13 @@ def measurements(path, data, recorded, torque_only, foreign, times=None):
     """
     Return (Measurements, {signal: (noise level, how it is known)}) of a recording.
 
-    A noise level comes from the sensor where the sensor is known: the
-    recording's sensor parameters (an ideal sensor there reads exactly: its
-    level is the floor), or for a foreign recording those of the starting
-    set (``--preset``, ``--params``, ``--set``) when they are not ideal; it
-    is then hypot(noise, q / sqrt(12)) with the quantisation step q. Where it is
-    not known, it is the data's estimate (:func:`data_level`): the white
+    A noise level comes from the sensor where the sensor is known: a
+    leadscrew_sim recording's sensor parameters (an ideal sensor there reads
+    exactly: its level is the floor); it is then hypot(noise, q / sqrt(12))
+    with the quantisation step q. A foreign recording's noise is not known,
+    whatever the starting set (``--preset``, ``--params``, ``--set``) says
+    (a set whose level is off by more than 2 times is told): it is the
+    data's estimate (:func:`data_level`): the white
     noise of the second differences, and at least q / sqrt(12) of the step
     the readings move in (:func:`reading_quantum`), so that a quantised
     signal whose noise is below its step (most second differences exactly
@@ -89,9 +90,12 @@ def measurements(path, data, recorded, torque_only, foreign, times=None):
     (a foreign recording's stamps); None: on the grid.
     """
     levels = sensor_levels(recorded)
+    declared = {}
     if not foreign:         # an ideal sensor of our own recording is known: it reads exactly
         levels = {'screw_angle': 0.0, 'nut_position': 0.0, **levels}
-    source = 'the starting set\'s sensor parameters' if foreign else 'sensor parameters'
+    else:                   # a real axis's noise is what its data show, not what a set says
+        declared, levels = levels, {}
+    source = 'sensor parameters'
     signals, sigma, noise = {}, {}, {}
     wanted = ['screw_angle'] + (['nut_position'] if recorded.linear_scale else []) + \
         ([] if torque_only else ['motor_torque'])
@@ -103,6 +107,9 @@ def measurements(path, data, recorded, torque_only, foreign, times=None):
             s, how = levels[name], source
         else:
             s, how = data_level(y, times)
+            said = declared.get(name)
+            if said is not None and not 0.5 <= said / max(s, 1e-300) <= 2.0:
+                how += f' (the starting set\'s sensor parameters say {said:.3g})'
         floor = max(SIGMA_FLOOR[name], RELATIVE_FLOOR * float(np.ptp(y[np.isfinite(y)])))
         if s <= floor:
             s, how = floor, FLOOR
@@ -118,17 +125,19 @@ def data_sensors(params, data, noise):
 
     The encoder's counts from the step its readings move in (2 pi / q, when
     that is near a whole number) and its noise from the estimated level less
-    the quantisation; the scale's resolution and noise alike. A known sensor
-    keeps ``params``' values. Used to re-simulate the recorded sensor chain
-    (the drive loop's response to its sensors) of a foreign recording.
+    the quantisation; the scale's resolution and noise alike. A quantiser
+    ``params`` declares is kept; the noise is always the data's. Used to
+    re-simulate the recorded sensor chain (the drive loop's response to its
+    sensors) of a foreign recording.
     """
     out = {n: getattr(params, n) for n in ('encoder_counts', 'encoder_noise', 'linear_scale',
                                            'scale_resolution', 'scale_noise')}
-    known = sensor_levels(params)
+    quanta = quantisation(params)
     for name in ('screw_angle', 'nut_position'):
-        if name in known or name not in noise or noise[name][1] == FLOOR:
+        if name not in noise or noise[name][1] == FLOOR:
             continue
-        q = reading_quantum(data[name])
+        # a declared quantiser is a fact of the sensor; its noise is what the data show
+        q = quanta.get(name, 0.0) * np.sqrt(12.0) or reading_quantum(data[name])
         white = float(np.sqrt(max(noise[name][0] ** 2 - q ** 2 / 12.0, 0.0)))
         if name == 'screw_angle':
             counts = 2.0 * np.pi / q if q > 0.0 else 0.0

@@ -30,6 +30,15 @@ SETUP_FIELDS = tuple(n for n in ScrewParams.names()
 #: Relative parameter change below which exact data count a fit as the truth (its floor).
 RESOLUTION = 1e-6
 
+#: Least and largest range [s] either side of a foreign recording's estimated
+#: command-to-state delay within which each re-simulation is aligned to the states.
+SHIFT_MIN, SHIFT_MAX = 2e-3, 1e-2
+
+#: Trial shifts of the coarse search of the alignment, and golden-section steps after it.
+SHIFT_GRID, SHIFT_GOLDEN = 9, 14
+#: Half-width [ns] of the three points of the parabola that ends the alignment's search.
+SHIFT_H = 2000.0
+
 #: Seeds of the re-simulations that measure the drive loop's response to the sensor noise.
 LOOP_SEEDS = 1
 
@@ -43,19 +52,33 @@ class Problem:
     recorded sensor signals on the same step grid.
     """
 
-    def __init__(self, args, rec, start):
-        """Read the recording (a leadscrew_sim one, or foreign with the mapping options)."""
+    def __init__(self, args, rec, start, delay=None):
+        """
+        Read the recording (a leadscrew_sim one, or foreign with the mapping options).
+
+        A foreign recording's command-to-state ``delay`` (a Delay) is the one
+        given, else the mapping's, else estimated with ``start``.
+        """
         foreign = bool(args.state_topic or args.command_topic) or \
             rec.record(PARAMS_RECORD) is None
         self.start = start
         if foreign:
-            src = ForeignReplay(args, rec, start)
+            src = ForeignReplay(args, rec, start, estimate_delay=delay is None)
+            if delay is not None:
+                src.set_delay(delay)
             recorded = start
         else:
             src = Resim(rec)
             recorded = src.params
             check_geometry(start, recorded)
         self.source, self.foreign, self.recorded = src, foreign, recorded
+        # a foreign recording's delay, unless the mapping sets it, is fitted with the
+        # parameters: each re-simulation is aligned in time to the states (:meth:`_aligned`)
+        self.fit_delay = foreign and src.delay.how != 'set'
+        half = src.delay.half_width if foreign else math.nan
+        self.shift_range = min(SHIFT_MAX, max(SHIFT_MIN, 3.0 * half)) \
+            if math.isfinite(half) else SHIFT_MAX
+        self.shift_ns = 0
         self.dt = src.dt_ns / NS
         _segments, commands, _forces = src.inputs()
         modes = commands[:, 0][np.isfinite(commands[:, 0])]
@@ -235,6 +258,8 @@ class Problem:
             if self.anchoring is not None and not plain:
                 return self.anchoring.run(self.source.model(overrides), self.commands,
                                           self.forces, n)
+            if self.foreign and self.fit_delay and not plain and 'sensor_seed' not in values:
+                return self._aligned(self.source.replay(overrides, n, interpolate=False), n)
             if n is None or self.foreign:
                 return self.source.replay(overrides, n) if self.foreign else \
                     self.source.replay(overrides)
@@ -251,6 +276,41 @@ class Problem:
         except ParameterError as exc:
             raise RunError(f're-simulation with {values}: {exc}') from None
 
+    @property
+    def delay(self):
+        """Return the command-to-state delay [s] of the last aligned re-simulation."""
+        return self.source.delay.value + self.shift_ns / NS
+
+    def _aligned(self, raw, n):
+        """
+        Return the columns of ``raw`` at the recorded states, shifted in time to fit them best.
+
+        The recording's command-to-state delay is not known; its estimate
+        (:mod:`leadscrew_sim.offline.foreign.delay`) is made with the starting
+        values, and with friction far from the axis's the re-simulated lag
+        differs, and so does the estimate (a velocity-mode run at the
+        defaults was estimated 0.54 ms where it was -0.40 ms: a fit at it
+        cannot explain its recording). The model is time-invariant, so a
+        further delay shifts the re-simulated states alike: each
+        re-simulation is compared at the shift, within +-``shift_range`` of
+        the estimate, that minimises its weighted squared residuals (a coarse
+        grid of :data:`SHIFT_GRID` shifts, then a golden-section search about
+        the best, and the vertex of a parabola through the least). The delay
+        is so fitted with the parameters at the cost of interpolations only
+        (the shift is concentrated out).
+        """
+        meas, src = self.measurements, self.source
+
+        def cost(shift):
+            r = meas.residuals(src.at_states(raw, int(round(shift))), n)
+            return float(np.dot(r.ravel(), r.ravel()))
+        span = self.shift_range * NS
+        grid = np.linspace(-span, span, SHIFT_GRID)
+        i = int(np.argmin([cost(x) for x in grid]))
+        best = _golden(cost, grid[max(0, i - 1)], grid[min(len(grid) - 1, i + 1)], SHIFT_GOLDEN)
+        self.shift_ns = int(round(best))
+        return src.at_states(raw, self.shift_ns)
+
     def compared(self, cols):
         """Return the columns ``cols`` of a re-simulation at the steps some signal is compared."""
         used = self.measurements.mask.any(axis=0)
@@ -265,3 +325,29 @@ class Problem:
             stage = self.stage if n is None else f'{self.stage}, first {n} of {self.n} steps'
             self.progress.update(stage, self.evaluations, self.misfit)
         return r
+
+
+def _golden(cost, a, b, steps):
+    """Return the point of [a, b] of the least ``cost`` after ``steps`` golden-section steps."""
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = cost(c), cost(d)
+    for _ in range(steps):
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = cost(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = cost(d)
+    x = c if fc <= fd else d
+    # the vertex of the parabola through x and x +- H: where the cost is smooth about its
+    # least, the same point whichever bracket the search started from
+    f0, fm, fp = min(fc, fd), cost(x - SHIFT_H), cost(x + SHIFT_H)
+    den = fm - 2.0 * f0 + fp
+    if den > 0.0:
+        v = x + 0.5 * SHIFT_H * (fm - fp) / den
+        if abs(v - x) <= SHIFT_H:
+            return v
+    return x
