@@ -283,7 +283,7 @@ class ForeignReplay:
             return cols
         return self.at_states(cols)
 
-    def at_states(self, cols, shift_ns=0):
+    def at_states(self, cols, shift_ns=0, only=None):
         """
         Return ``cols`` (of :meth:`replay` without ``interpolate``) at the recorded states.
 
@@ -291,7 +291,7 @@ class ForeignReplay:
         re-simulation at that state's stamp less ``shift_ns`` [ns]: a further
         command-to-state delay (the model is time-invariant, so delaying the
         commands delays the states alike); outside the run, its first or last
-        step.
+        step. ``only``: the sensor columns to compute (None: all six).
         """
         cols = dict(cols)
         n_run = len(next(iter(cols.values())))
@@ -303,7 +303,7 @@ class ForeignReplay:
         use = self.k < n_run - 1
         for column in ('sensor_screw_angle', 'sensor_nut_position', 'motor_torque',
                        'sensor_screw_velocity', 'sensor_nut_velocity', 'axial_force'):
-            if column not in cols or n_run < 2:
+            if column not in cols or n_run < 2 or (only is not None and column not in only):
                 continue
             c = np.array(cols[column], dtype=float)
             c[self.k[use]] = between(cols, column, k[use], frac[use], self.dt_ns)

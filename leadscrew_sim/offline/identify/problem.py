@@ -35,7 +35,7 @@ RESOLUTION = 1e-6
 SHIFT_MIN, SHIFT_MAX = 2e-3, 1e-2
 
 #: Trial shifts of the coarse search of the alignment, and golden-section steps after it.
-SHIFT_GRID, SHIFT_GOLDEN = 9, 14
+SHIFT_GRID, SHIFT_GOLDEN = 7, 12
 #: Half-width [ns] of the three points of the parabola that ends the alignment's search.
 SHIFT_H = 2000.0
 
@@ -300,10 +300,21 @@ class Problem:
         (the shift is concentrated out).
         """
         meas, src = self.measurements, self.source
+        n_run = len(next(iter(raw.values())))
+        steps = src.k[src.k < min(n_run - 1, meas.n if n is None else n)]
+        only = {meas.columns[s] for s in meas.names}
+        rows = [(meas.columns[s], meas.data[i, steps], meas.mask[i, steps],
+                 1.0 / meas.sigma[s], meas.offset[i]) for i, s in enumerate(meas.names)]
 
-        def cost(shift):
-            r = meas.residuals(src.at_states(raw, int(round(shift))), n)
-            return float(np.dot(r.ravel(), r.ravel()))
+        def cost(shift):        # the weighted squared residuals, at the states' steps only
+            cols = src.at_states(raw, int(round(shift)), only)
+            total = 0.0
+            for column, y, ok, w, off in rows:
+                d = (np.asarray(cols[column])[steps] - y)[ok]
+                if off and len(d):
+                    d = d - d.mean()
+                total += float(np.dot(d, d)) * w * w
+            return total
         span = self.shift_range * NS
         grid = np.linspace(-span, span, SHIFT_GRID)
         i = int(np.argmin([cost(x) for x in grid]))
