@@ -172,12 +172,8 @@ def test_without_the_quantisation_term_the_quantised_scale_fails_fast(recordings
     Mutation: with the quantisation term removed, the quantised-scale check fails.
 
     The scale's level then falls to the numerical floor, the fit cannot explain
-    the staircase, and says so within 45 s (of CPU time: the host is shared)
-    and half the issue's 9,018 re-simulations, naming the nut position. (It
-    was 20 s until a foreign recording's delay was fitted with the
-    parameters: each re-simulation is now also aligned in time, 21
-    interpolations of its states, and this run measured 32.6 s; the issue's
-    20 s is not met again yet.)
+    the staircase, and says so within 20 s (of CPU time: the host is shared)
+    and half the issue's 9,018 re-simulations, naming the nut position.
     """
     from leadscrew_sim.offline.identify import inputs
     monkeypatch.setattr(inputs, 'quantisation', lambda params: {})
@@ -188,7 +184,7 @@ def test_without_the_quantisation_term_the_quantised_scale_fails_fast(recordings
     out, wall = _identify(rec, *_foreign())
     reason = out['res'].verdict('mu_s').reason
     assert 'nut_position is not explained' in reason, reason
-    assert wall < 45.0 and out['problem'].evaluations < 4500, (wall, out['problem'].evaluations)
+    assert wall < 20.0 and out['problem'].evaluations < 4500, (wall, out['problem'].evaluations)
 
 
 @pytest.mark.parametrize('foreign', (False, True), ids=('own', 'foreign'))

@@ -310,6 +310,22 @@ class ForeignReplay:
             cols[column] = c
         return cols
 
+    def shifted_steps(self, shifts_ns, steps, n_run, every=1):
+        """
+        Return (k, frac) of the recorded states of ``steps`` for each shift: (shifts, states).
+
+        As :meth:`at_states` places them, for many shifts [ns] at once (the
+        alignment's search); ``steps``: the states' steps (``self.k`` inside the
+        run of ``n_run`` steps), every ``every``-th of them; :func:`hermite`
+        interpolates a column there.
+        """
+        use = np.flatnonzero(self.k < n_run - 1)[::every]
+        base = (self.k[use] + 1) * self.dt_ns + np.round(self.frac[use] * self.dt_ns)
+        rel = base[None, :] - np.round(np.asarray(shifts_ns, dtype=float))[:, None]
+        k = np.clip(rel // self.dt_ns - 1, 0, max(0, n_run - 2)).astype(np.int64)
+        frac = np.clip((rel - (k + 1) * self.dt_ns) / self.dt_ns, 0.0, 1.0)
+        return k, frac
+
     def sample_times(self):
         """Return per step the time of its recorded state [steps from t0] (NaN: none)."""
         a = np.full(self.n_steps, np.nan)
@@ -347,14 +363,26 @@ def between(cols, column, k, frac, dt_ns):
     the rest linearly.
     """
     y = np.asarray(cols[column], dtype=float)
-    y0, y1 = y[k], y[k + 1]
     slope = SLOPES.get(column)
-    if slope is None:
+    v = None if slope is None else np.asarray(cols[slope], dtype=float) * (dt_ns / NS)
+    return hermite(y, v, k, frac)
+
+
+def hermite(y, v, k, frac):
+    """
+    Return ``y`` between its steps k and k + 1 at ``frac`` of the step.
+
+    Cubic Hermite with the slopes ``v`` [unit per step] where given (a
+    position and its velocity), else linear.
+    """
+    y0, y1 = y[k], y[k + 1]
+    if v is None:
         return y0 + frac * (y1 - y0)
-    v = np.asarray(cols[slope], dtype=float) * (dt_ns / NS)
     s = frac
-    return ((2 * s ** 3 - 3 * s ** 2 + 1) * y0 + (s ** 3 - 2 * s ** 2 + s) * v[k]
-            + (-2 * s ** 3 + 3 * s ** 2) * y1 + (s ** 3 - s ** 2) * v[k + 1])
+    s2 = s * s
+    s3 = s2 * s
+    return ((2 * s3 - 3 * s2 + 1) * y0 + (s3 - 2 * s2 + s) * v[k]
+            + (-2 * s3 + 3 * s2) * y1 + (s3 - s2) * v[k + 1])
 
 
 def at_times(cols, column, dt_ns, rel_ns, slope=False):

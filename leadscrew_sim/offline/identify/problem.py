@@ -14,6 +14,7 @@ import numpy as np
 from .inputs import (check_geometry, data_sensors, ESTIMATED, FLOOR, ForeignReplay,
                      measured_of_resim, measurements)
 from .progress import rms_per_signal
+from ..foreign.replay import hermite, SLOPES
 from ..options import NS, RunError
 from ..replay.resim import Resim
 from ...analysis.identify import fit as ident
@@ -34,10 +35,11 @@ RESOLUTION = 1e-6
 #: command-to-state delay within which each re-simulation is aligned to the states.
 SHIFT_MIN, SHIFT_MAX = 2e-3, 1e-2
 
-#: Trial shifts of the coarse search of the alignment, and golden-section steps after it.
-SHIFT_GRID, SHIFT_GOLDEN = 7, 12
-#: Half-width [ns] of the three points of the parabola that ends the alignment's search.
-SHIFT_H = 2000.0
+#: Trial shifts of each of the alignment's grids, and how many grids, each about the best
+#: of the one before and spanning two of its intervals.
+SHIFT_GRID, SHIFT_ROUNDS = 9, 2
+#: Most recorded states the alignment's search compares (evenly taken).
+SHIFT_STATES = 300
 
 #: Seeds of the re-simulations that measure the drive loop's response to the sensor noise.
 LOOP_SEEDS = 1
@@ -293,32 +295,51 @@ class Problem:
         cannot explain its recording). The model is time-invariant, so a
         further delay shifts the re-simulated states alike: each
         re-simulation is compared at the shift, within +-``shift_range`` of
-        the estimate, that minimises its weighted squared residuals (a coarse
-        grid of :data:`SHIFT_GRID` shifts, then a golden-section search about
-        the best, and the vertex of a parabola through the least). The delay
-        is so fitted with the parameters at the cost of interpolations only
-        (the shift is concentrated out).
+        the estimate, that minimises its weighted squared residuals: a grid of
+        :data:`SHIFT_GRID` shifts, :data:`SHIFT_ROUNDS` times, each about the
+        best of the one before and spanning two of its intervals, then the
+        vertex of a parabola through the least three (each grid one
+        vectorised interpolation). The delay is so fitted with the
+        parameters at the cost of interpolations only (the shift is
+        concentrated out).
         """
         meas, src = self.measurements, self.source
         n_run = len(next(iter(raw.values())))
         steps = src.k[src.k < min(n_run - 1, meas.n if n is None else n)]
-        only = {meas.columns[s] for s in meas.names}
-        rows = [(meas.columns[s], meas.data[i, steps], meas.mask[i, steps],
-                 1.0 / meas.sigma[s], meas.offset[i]) for i, s in enumerate(meas.names)]
+        slope_of = {c: SLOPES.get(c) for c in meas.columns.values()}
+        # the search on at most SHIFT_STATES states, evenly taken (the shift is one number)
+        every = -(-len(steps) // SHIFT_STATES)
+        rows = []
+        for i, s in enumerate(meas.names):
+            column = meas.columns[s]
+            ok = meas.mask[i, steps] & (np.arange(len(steps)) % every == 0)
+            v = None if slope_of[column] is None else \
+                np.asarray(raw[slope_of[column]], dtype=float) * (src.dt_ns / NS)
+            rows.append((np.asarray(raw[column], dtype=float), v, meas.data[i, steps][ok], ok,
+                         1.0 / meas.sigma[s] ** 2, meas.offset[i]))
 
-        def cost(shift):        # the weighted squared residuals, at the states' steps only
-            cols = src.at_states(raw, int(round(shift)), only)
-            total = 0.0
-            for column, y, ok, w, off in rows:
-                d = (np.asarray(cols[column])[steps] - y)[ok]
-                if off and len(d):
-                    d = d - d.mean()
-                total += float(np.dot(d, d)) * w * w
+        def costs(shifts):      # the weighted squared residuals at the states, per shift
+            k, frac = src.shifted_steps(shifts, steps, n_run, every)
+            total = np.zeros(len(shifts))
+            for y, v, data, ok, w2, off in rows:
+                d = hermite(y, v, k[:, ok[::every]], frac[:, ok[::every]]) - data
+                if off and d.shape[1]:
+                    d = d - d.mean(axis=1, keepdims=True)
+                total += np.einsum('ij,ij->i', d, d) * w2
             return total
         span = self.shift_range * NS
-        grid = np.linspace(-span, span, SHIFT_GRID)
-        i = int(np.argmin([cost(x) for x in grid]))
-        best = _golden(cost, grid[max(0, i - 1)], grid[min(len(grid) - 1, i + 1)], SHIFT_GOLDEN)
+        centre, half = 0.0, span
+        for _ in range(SHIFT_ROUNDS):   # ever finer grids about the best
+            grid = centre + np.linspace(-half, half, SHIFT_GRID)
+            c = costs(grid)
+            i = int(np.argmin(c))
+            centre, half = grid[i], 2.0 * half / (SHIFT_GRID - 1)
+        best = centre
+        if 0 < i < SHIFT_GRID - 1:      # the vertex of the parabola through the least three
+            den = c[i - 1] - 2.0 * c[i] + c[i + 1]
+            h = grid[1] - grid[0]
+            if den > 0.0:
+                best = centre + 0.5 * h * (c[i - 1] - c[i + 1]) / den
         self.shift_ns = int(round(best))
         return src.at_states(raw, self.shift_ns)
 
@@ -337,28 +358,3 @@ class Problem:
             self.progress.update(stage, self.evaluations, self.misfit)
         return r
 
-
-def _golden(cost, a, b, steps):
-    """Return the point of [a, b] of the least ``cost`` after ``steps`` golden-section steps."""
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = cost(c), cost(d)
-    for _ in range(steps):
-        if fc <= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = cost(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = cost(d)
-    x = c if fc <= fd else d
-    # the vertex of the parabola through x and x +- H: where the cost is smooth about its
-    # least, the same point whichever bracket the search started from
-    f0, fm, fp = min(fc, fd), cost(x - SHIFT_H), cost(x + SHIFT_H)
-    den = fm - 2.0 * f0 + fp
-    if den > 0.0:
-        v = x + 0.5 * SHIFT_H * (fm - fp) / den
-        if abs(v - x) <= SHIFT_H:
-            return v
-    return x
