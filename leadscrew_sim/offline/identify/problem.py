@@ -357,4 +357,3 @@ class Problem:
             stage = self.stage if n is None else f'{self.stage}, first {n} of {self.n} steps'
             self.progress.update(stage, self.evaluations, self.misfit)
         return r
-
