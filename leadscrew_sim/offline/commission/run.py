@@ -36,7 +36,7 @@ def _say(line):
     print(line, file=sys.stderr, flush=True)
 
 
-def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
+def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=None):
     """
     Commission the axis of recording ``path``; write DIR's three files; return the report dict.
 
@@ -54,6 +54,9 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
         A segments sidecar JSON file.
     progress : callable
         Gets one line per stage (stderr).
+    keep : dict, optional
+        Gets ``fit``: what the fit stage's :func:`fit_recording` returned
+        (None: no fit).
 
     """
     t_all = time.perf_counter()
@@ -105,6 +108,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say):
               'time_origin_s': origin,
               'sections': _clean(sections), 'timings_s': timings,
               'wall_s': time.perf_counter() - t_all, 'fitted_on': ctx.fitted_on}
+    if keep is not None:
+        keep['fit'] = getattr(ctx, 'fit', None)
     _write_fit(os.path.join(out_dir, 'fit.yaml'), ctx)
     write_text(os.path.join(out_dir, 'report.json'), json.dumps(report, indent=1) + '\n', '-o')
     page = html.render(f'Commissioning report: {os.path.basename(str(path))}',
