@@ -40,13 +40,41 @@ def _profile(tmp, name):
     return ['--excite', name], False
 
 
-def run_case(tmp, name, seed):
+def withhold(src, dst):
+    """
+    Copy the messages of run file ``src`` to ``dst`` without its metadata records.
+
+    As a user's ``ros2 bag record`` of the node leaves it: no parameters
+    record, so no sensor seed and no sensor model (the mcap library's writer,
+    not ours).
+    """
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+    with open(src, 'rb') as fi, open(dst, 'wb') as fo:
+        w = Writer(fo)
+        w.start(profile='ros2', library='bench')
+        schemas, chans = {}, {}
+        for schema, ch, msg in make_reader(fi).iter_messages(log_time_order=False):
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
+                                                       schema.data)
+            if ch.id not in chans:
+                chans[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
+                                                  schemas[schema.id], ch.metadata)
+            w.add_message(chans[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+        w.finish()
+
+
+def run_case(tmp, name, seed, withheld=False):
     """Record and fit one profile with one sensor seed; return (row text, holds, count)."""
     opts, horizontal = _profile(tmp, name)
     rec = tmp / f'{name}_{seed}.mcap'
     sensors = dict(R.REAL, sensor_seed=seed)
     cli.main(['simulate', '--preset', 'tr12x3', *map(str, opts), *R._sets(R.TRUTH),
               *R._sets(sensors), '-q', '-o', str(rec)])
+    if withheld:
+        withhold(rec, tmp / f'{name}_{seed}_bare.mcap')
+        rec = tmp / f'{name}_{seed}_bare.mcap'
     main = importlib.import_module('leadscrew_sim.cli.main')
     extra = R._sets(R.HORIZONTAL) if horizontal else []
     args = main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3',
@@ -73,6 +101,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--seeds', type=int, default=3, help='sensor seeds per profile (7, 11, ..)')
     ap.add_argument('--profiles', default='sweep,breakaway,reversals,torque_steps')
+    ap.add_argument('--withheld', action='store_true',
+                    help='fit copies without the parameters record (no sensor seed or model)')
     a = ap.parse_args()
     seeds = [7 + 4 * i for i in range(a.seeds)]
     print('| profile | seed | mu_s | mu_k | Stribeck velocity | wall |')
@@ -82,7 +112,7 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         for name in a.profiles.split(','):
             for seed in seeds:
-                row, h, c = run_case(Path(d), name, seed)
+                row, h, c = run_case(Path(d), name, seed, a.withheld)
                 holds, count = holds + h, count + c
                 print(row, flush=True)
     share = f'{100 * holds / count:.0f} %' if count else '-'

@@ -10,11 +10,10 @@ its parts in a segments sidecar. The run library is
 :mod:`leadscrew_sim.offline.commission.run`; the fit takes the options of
 ``identify`` (starting values) that this verb passes on.
 """
-import importlib
-
 from .args import add_mapping_arguments
 from ..offline.foreign.mapping import Mapping
 from ..offline.commission.run import commission
+from ..offline.library import identify_options
 from ..offline.options import keep_freed_memory
 
 HELP = 'commission an axis from one recording: fit.yaml, report.json and report.html'
@@ -42,19 +41,12 @@ def add_arguments(p):
 
 def run(args):
     """Commission the recording and write the three files; return 0."""
-    main = importlib.import_module('leadscrew_sim.cli.main')
     keep_freed_memory()
-    argv = ['identify', args.run, '--quiet']
-    for flag, value in (('--preset', args.preset), ('--params', args.params)):
-        if value:
-            argv += [flag, value]
-    for item in args.set or []:
-        argv += ['--set', item]
-    identify_args = main.build_parser().parse_args(argv)
-    identify_args.map = args.map
-    for key in Mapping.keys():
-        setattr(identify_args, 'rate' if key == 'step_rate' else key, getattr(args, key))
-    commission(args.run, args.output, identify_args, args.segments,
+    mapping = Mapping(**{k: getattr(args, 'rate' if k == 'step_rate' and not hasattr(args, k)
+                                    else k, None) for k in Mapping.keys()})
+    fit_options = identify_options(args.run, preset=args.preset, params=args.params,
+                                   set_items=args.set, mapping=mapping, map_file=args.map)
+    commission(args.run, args.output, fit_options, args.segments,
                progress=(lambda line: None) if args.quiet else _say)
     return 0
 

@@ -31,7 +31,8 @@ from .foreign.mapping import Mapping
 from .options import open_recording as _open, RunError
 
 __all__ = ['CommissionResult', 'IdentifyResult', 'Mapping', 'Options', 'Recording',
-           'SimulateResult', 'commission', 'identify', 'open_recording', 'simulate']
+           'SimulateResult', 'commission', 'identify', 'identify_options', 'open_recording',
+           'simulate']
 
 
 class Options:
@@ -235,6 +236,21 @@ def _recording(rec):
     return rec if isinstance(rec, Recording) else open_recording(rec)
 
 
+def identify_options(file, *, preset=None, params=None, set_items=None, mapping=None,
+                     map_file=None, fit=None):
+    """
+    Return the fields the fit of ``identify`` reads, as :class:`Options`.
+
+    ``set_items``: NAME=VALUE texts; ``mapping``: a :class:`Mapping` whose
+    given fields win over ``map_file`` (a mapping YAML file).
+    """
+    fields = _mapping_fields(mapping)
+    fields['map'] = map_file
+    return Options(file=str(file), fit=fit, preset=preset, params=params, set=set_items,
+                   output_params=None, report=None, plot=None, max_nfev=None,
+                   restarts='auto', write_all=False, quiet=True, **fields)
+
+
 def _mapping_fields(mapping):
     """Return the run library's mapping fields of a :class:`Mapping` (None: none given)."""
     m = mapping or Mapping()
@@ -384,10 +400,8 @@ def commission(recording, output, *, segments=None, preset=None, params=None, se
     """
     from .commission.run import commission as run_commission
     rec = _recording(recording)
-    opts = Options(file=rec.path, fit=None, preset=preset, params=params, set=_sets(set),
-                   output_params=None, report=None, plot=None, max_nfev=None,
-                   restarts='auto', write_all=False, quiet=True,
-                   **_mapping_fields(rec.mapping))
+    opts = identify_options(rec.path, preset=preset, params=params, set_items=_sets(set),
+                            mapping=rec.mapping)
     held = {}
     report = run_commission(rec.path, str(output), opts, segments, progress=lambda line: None,
                             keep=held)

@@ -154,3 +154,30 @@ def test_commission_of_a_bag_without_its_mapping_names_the_way(good, tmp_path):
     assert str(good) in line
     assert not out.exists()
     assert _digest(good) == before
+
+
+@pytest.mark.parametrize('verb', ['resim', 'identify'])
+def test_a_command_topic_that_does_not_move_the_axis(verb, tmp_path):
+    """
+    Velocity commands all 0 while the nut moves 1 mm: one line names the topic and the travel.
+
+    The oracle is the bag's own content: a twin driven by zero velocity holds
+    the axis, so no fit could explain a nut that travels 1 mm.
+    """
+    msgs = []
+    stamps = B.EPOCH + np.arange(1, 500) * 4_000_000
+    for i, s in enumerate(stamps):
+        x = 1e-3 * i / len(stamps)
+        msgs.append((int(s) + 100_000, B.STATES, 'sensor_msgs/msg/JointState',
+                     B.joint_state(int(s), (B.SCREW, B.NUT), [x / 4.7746e-4, x], [0.0, 0.0],
+                                   [0.0, 0.0])))
+    for i in range(200):
+        msgs.append((B.EPOCH + i * 10_000_000, B.FORWARD, 'std_msgs/msg/Float64MultiArray',
+                     B.multi_array([0.0, 0.0])))
+    bag = B.write_bag(tmp_path / 'bag', msgs)
+    before = _digest(bag)
+    args = [a if a != 'position' else 'velocity' for a in MAP]
+    r = cli(verb, bag, *args)
+    _one_line(r, B.FORWARD, 'does not move the axis', '200 velocity commands, all 0',
+              'nut_position over 0.000998 m')
+    assert _digest(bag) == before

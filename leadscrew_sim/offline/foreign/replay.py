@@ -20,7 +20,7 @@ import numpy as np
 
 from . import delay as D
 from .commands import Commands, CommandSet
-from .mapping import COMMAND_TYPES, DEFAULT_STEP_RATE, JOINT_STATE, Mapping
+from .mapping import COMMAND_TYPES, DEFAULT_STEP_RATE, JOINT_STATE, KIND_ALIASES, Mapping
 from .segments import motion_segments
 from .states import COLUMNS, States
 from ..options import NS, RunError
@@ -35,6 +35,10 @@ SLOPES = {'sensor_screw_angle': 'motor_velocity', 'sensor_nut_position': 'nut_ve
 #: Signals compared with an offset removed (an encoder's zero is arbitrary).
 OFFSET_SIGNALS = ('screw_angle',)
 
+
+#: Travel of the states [m, rad] beyond which a recording moves (commands that cannot move
+#: the axis are then the wrong topic).
+STILL_NUT, STILL_SCREW = 1e-4, 0.1
 
 #: The node's own command topics and their kinds (None: a JointState, the node's mode rule).
 OWN_COMMANDS = (('torque_command', 'torque'), ('velocity_command', 'velocity'),
@@ -142,6 +146,7 @@ class ForeignReplay:
                                          command_index=index, command_joint=joint),
                      self.joints, rec.path)
             for t, (_t, kind, index, joint) in zip(topics, specs))
+        self._check_moves()
         first, last = self.commands.span()
         s0, s1 = int(self.states.stamps[0]), int(self.states.stamps[-1])
         if s1 < first or s0 > last + 10 * NS:
@@ -162,6 +167,38 @@ class ForeignReplay:
                        else D.Delay(0.0, float('nan'), 'not determined'))
         if m.command_delay is None and estimate_delay:
             self.set_delay(self.estimate_delay())
+
+    def _check_moves(self):
+        """
+        Refuse command topics none of which can move the axis while the states move.
+
+        Torque and velocity commands that are all exactly 0 hold the axis
+        still; a twin driven by them cannot explain a recording that moves
+        (more than :data:`STILL_NUT` [m] or :data:`STILL_SCREW` [rad]): the
+        topic is the wrong one. One line names it, its command count and how
+        far the states move.
+        """
+        idle = []
+        for part in self.commands.parts:
+            kind = KIND_ALIASES.get(part.command_kind, part.command_kind)
+            values = getattr(part, 'values', None)
+            if part.kind != 'scalar' or kind not in ('torque', 'velocity') or values is None:
+                return
+            if np.any(np.asarray(values) != 0.0):
+                return
+            idle.append(f'{part.topic} ({len(values)} {kind} commands, all 0)')
+        moved = []
+        for name, still, unit in (('nut_position', STILL_NUT, 'm'),
+                                  ('screw_angle', STILL_SCREW, 'rad')):
+            y = self.states.values.get(name)
+            if y is not None and np.isfinite(y).any():
+                span = float(np.nanmax(y) - np.nanmin(y))
+                if span > still:
+                    moved.append(f'{name} over {span:.3g} {unit}')
+        if idle and moved:
+            raise RunError(f'--command-topic: {", ".join(idle)} does not move the axis, but '
+                           f'the states on {self.state_topic} move ({", ".join(moved)}): map '
+                           'the topic that commands it (`leadscrew_sim info` lists them)')
 
     def _start_position(self):
         """
