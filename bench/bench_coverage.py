@@ -92,7 +92,7 @@ def run_case(tmp, name, seed, withheld=False):
         ok = vd.lower <= truth <= vd.upper
         holds, count = holds + ok, count + 1
         half = 50.0 * (vd.upper - vd.lower) / v
-        cells.append(f'{100 * (v - truth) / truth:+.2f} % (+-{half:.3g} %){"" if ok else " MISS"}')
+        cells.append(f'{100 * (v - truth) / truth:+.4f} % (+-{half:.3g} %){"" if ok else " MISS"}')
     return f'| {name} | {seed} | ' + ' | '.join(cells) + f' | {wall:.0f} s |', holds, count
 
 

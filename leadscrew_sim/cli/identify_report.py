@@ -54,7 +54,7 @@ def report(path, out):
         if problem.fit_delay:
             lines.append(f'  fitted with the parameters: {problem.delay * 1e3:.3f} ms (each '
                          f're-simulation aligned in time to the states within '
-                         f'+-{problem.shift_range * 1e3:.3g} ms of the estimate)')
+                         f'+-{problem.shift_range * 1e3:.3g} ms of the delay above)')
     if getattr(problem, 'exact', False):
         lines.append('exact data (ideal sensors): no statistical intervals; each noise level '
                      'is the numerical floor, and a parameter that changes the signals by more '

@@ -189,4 +189,9 @@ def _write_fit(path, ctx):
         text = params_document(ctx.fit['params'], ctx.label, ctx.fit['res'])
         text = text.replace('# leadscrew_sim identify:', '# leadscrew_sim commission (identify '
                             'on the sweep):', 1)
+    fitted = getattr(ctx, 'backlash_fit', None)
+    if fitted is not None:
+        value, lower, upper = fitted
+        text = text.rstrip('\n') + (f'\n    backlash: {value!r}  # commission: fitted on the '
+                                     f'reversals, 95 % interval [{lower:.6g}, {upper:.6g}] m\n')
     write_text(path, text, '-o')

@@ -35,14 +35,17 @@ class Delay:
     """
     A command-to-state delay: its value [s], the half width of its interval [s], and how known.
 
-    ``how``: ``set`` (``--command-delay``), ``estimated`` or ``not determined``
-    (then ``value`` is 0 and ``half_width`` NaN).
+    ``how``: ``set`` (``--command-delay``), ``estimated``, ``not determined``
+    (then ``value`` is 0 and ``half_width`` NaN) or ``uncertain`` (an
+    estimate, ``estimate`` +- ``half_width``, too wide to start from: ``value``
+    is 0).
     """
 
     value: float
     half_width: float
     how: str
     signal: str = ''
+    estimate: float = 0.0
 
     def line(self):
         """Return the report line of the delay."""
@@ -52,6 +55,10 @@ class Delay:
             return (f'command-to-state delay: {self.value * 1e3:.3f} ms +- '
                     f'{self.half_width * 1e3:.3f} ms (estimated from {self.signal}, about 95 %; '
                     f'--command-delay sets it)')
+        if self.how == 'uncertain':
+            return (f'command-to-state delay: 0 used (the estimate with the starting values, '
+                    f'{self.estimate * 1e3:.3f} ms +- {self.half_width * 1e3:.3f} ms, is too '
+                    'uncertain to start from; --command-delay sets it)')
         return ('command-to-state delay: not determined (no motion in the mapped states); 0 '
                 'used, --command-delay sets it')
 

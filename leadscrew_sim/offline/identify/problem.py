@@ -14,6 +14,7 @@ import numpy as np
 from .inputs import (check_geometry, data_sensors, ESTIMATED, FLOOR, ForeignReplay,
                      measured_of_resim, measurements)
 from .progress import rms_per_signal
+from ..foreign.delay import Delay
 from ..foreign.replay import hermite, SLOPES
 from ..options import NS, RunError
 from ..replay.resim import Resim
@@ -68,6 +69,11 @@ class Problem:
             src = ForeignReplay(args, rec, start, estimate_delay=delay is None)
             if delay is not None:
                 src.set_delay(delay)
+            elif src.delay.how == 'estimated' and not src.delay.half_width <= SHIFT_MAX:
+                # with the starting values far from the axis's the estimate can be anywhere
+                # (a falling axis gave -41 +- 365 ms): the search starts from no delay
+                d = src.delay
+                src.set_delay(Delay(0.0, d.half_width, 'uncertain', d.signal, d.value))
             recorded = start
         else:
             src = Resim(rec)
@@ -77,7 +83,7 @@ class Problem:
         # a foreign recording's delay, unless the mapping sets it, is fitted with the
         # parameters: each re-simulation is aligned in time to the states (:meth:`_aligned`)
         self.fit_delay = foreign and src.delay.how != 'set'
-        half = src.delay.half_width if foreign else math.nan
+        half = src.delay.half_width if foreign and src.delay.how == 'estimated' else math.nan
         self.shift_range = min(SHIFT_MAX, max(SHIFT_MIN, 3.0 * half)) \
             if math.isfinite(half) else SHIFT_MAX
         self.shift_ns = 0

@@ -1,7 +1,15 @@
-"""Stage 'backlash': the reversal hysteresis of the reversals, measured and twin."""
+"""Stage 'backlash': the reversal hysteresis of the reversals, measured and twin; the fit."""
+import copy
+import math
+import os
+
 import numpy as np
 
+from .fit import FIT
+from ..trim import write_window
+from ...identify.run import fit_recording
 from ....analysis import figures as F
+from ....core.params import ScrewParams
 
 
 def hysteresis(t, target, x):
@@ -30,11 +38,10 @@ def run(ctx, part='reversals', title='Backlash'):
         kk = (tt >= a) & (tt <= b)
         section['twin'] = hysteresis(tt[kk], ctx.held('position', tt[kk]),
                                      ctx.twin['nut_position'][kk])
-    section['backlash_calibrated'] = ctx.calibrated.backlash
     section['backlash_fitted'] = False
-    section['cannot'].append('the backlash was not fitted (it keeps its starting value): the '
-                             'measured and twin hysteresis compare it; a vertical loaded axis '
-                             'keeps the nut on one flank, so the play does not show there')
+    if part == 'reversals':
+        fit_backlash(ctx, section)
+    section['backlash_calibrated'] = ctx.calibrated.backlash
     if section['measured'] is None:
         section['cannot'].append('no target approached from both sides: no reversal error')
     sigma = ctx.noise.get('nut_position')
@@ -43,3 +50,51 @@ def run(ctx, part='reversals', title='Backlash'):
         n = max(1, int(np.sum(k)) // max(1, 4 * len(section['measured']['targets']) * 5))
         section['reversal_resolution_m'] = 2.0 * sigma / np.sqrt(n)
     return section
+
+
+def fit_backlash(ctx, section):
+    """
+    Fit the backlash on the recording up to the reversals' end, the friction held at the fit's.
+
+    The play shows only where the nut is measured apart from the motor: with
+    a linear scale. Without one, the nut position is the encoder's through
+    the lead, with no play in it, and the section says so. A vertical loaded
+    axis keeps the nut on one flank, so the fit finds no sensitivity there
+    and says that. An identified backlash joins the calibrated set and
+    fit.yaml, with its 95 % interval.
+    """
+    if ctx.fit is None:
+        section['cannot'].append('the backlash was not fitted: no identify fit (no sweep) to '
+                                 'hold the friction at')
+        return
+    if 'nut_position' not in ctx.fit['problem'].measurements.names:
+        section['cannot'].append('the backlash cannot be seen without a linear scale: the '
+                                 'nut position is then the encoder\'s through the lead, which '
+                                 'has no play in it; it keeps its starting value')
+        return
+    _a, b = ctx.windows['reversals']
+    path = os.path.join(ctx.work, 'backlash_window.mcap')
+    write_window(ctx.rec, path, ctx.origin + b)
+    args = copy.copy(ctx.identify_args)
+    held = [f'{n}={float(getattr(ctx.calibrated, n))!r}' for n in FIT]
+    args.file, args.fit, args.set = path, 'backlash', list(args.set or []) + held
+    out = fit_recording(args)
+    res = out['res']
+    i = list(res.names).index('backlash')
+    vd, value = res.verdicts[i], float(res.values[i])
+    section['backlash_fit'] = {
+        'value': value if vd.identified else None,
+        'lower': vd.lower if vd.identified and math.isfinite(vd.lower) else None,
+        'upper': vd.upper if vd.identified and math.isfinite(vd.upper) else None,
+        'verdict': vd.status, 'reason': getattr(vd, 'reason', '') or '',
+        'window': [0.0, b], 'wall_s': out['wall'],
+        'held': {n: float(getattr(ctx.calibrated, n)) for n in FIT}}
+    if vd.identified:
+        section['backlash_fitted'] = True
+        ctx.calibrated = ScrewParams.from_dict({'backlash': value}, base=ctx.calibrated)
+        ctx.backlash_fit = (value, vd.lower, vd.upper)
+    else:
+        section['cannot'].append(f'backlash: not identified on the reversals '
+                                 f'({" ".join(str(vd.reason).split())}); it keeps its '
+                                 'starting value (a vertical loaded axis keeps the nut on one '
+                                 'flank, so the play does not show there)')
