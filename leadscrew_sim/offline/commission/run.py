@@ -192,6 +192,7 @@ def _write_fit(path, ctx):
     fitted = getattr(ctx, 'backlash_fit', None)
     if fitted is not None:
         value, lower, upper = fitted
-        text = text.rstrip('\n') + (f'\n    backlash: {value!r}  # commission: fitted on the '
-                                     f'reversals, 95 % interval [{lower:.6g}, {upper:.6g}] m\n')
+        line = (f'    backlash: {value!r}  # commission: fitted on the reversals, 95 % '
+                f'interval [{lower:.6g}, {upper:.6g}] m')
+        text = text.rstrip('\n') + '\n' + line + '\n'
     write_text(path, text, '-o')
