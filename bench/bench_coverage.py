@@ -26,6 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / 'test'))
 sys.path.insert(0, str(HERE.parent / 'test' / 'cli'))
 import test_identify_real_sensors as R  # noqa: E402  (the test's truth, sensors, profiles)
+from bag_factory import strip_records  # noqa: E402  (a copy without the parameters record)
 
 from leadscrew_sim import cli  # noqa: E402, I100
 from leadscrew_sim.offline.identify.run import fit_recording  # noqa: E402
@@ -40,31 +41,6 @@ def _profile(tmp, name):
     return ['--excite', name], False
 
 
-def withhold(src, dst):
-    """
-    Copy the messages of run file ``src`` to ``dst`` without its metadata records.
-
-    As a user's ``ros2 bag record`` of the node leaves it: no parameters
-    record, so no sensor seed and no sensor model (the mcap library's writer,
-    not ours).
-    """
-    from mcap.reader import make_reader
-    from mcap.writer import Writer
-    with open(src, 'rb') as fi, open(dst, 'wb') as fo:
-        w = Writer(fo)
-        w.start(profile='ros2', library='bench')
-        schemas, chans = {}, {}
-        for schema, ch, msg in make_reader(fi).iter_messages(log_time_order=False):
-            if schema.id not in schemas:
-                schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
-                                                       schema.data)
-            if ch.id not in chans:
-                chans[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
-                                                  schemas[schema.id], ch.metadata)
-            w.add_message(chans[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
-        w.finish()
-
-
 def run_case(tmp, name, seed, withheld=False):
     """Record and fit one profile with one sensor seed; return (row text, holds, count)."""
     opts, horizontal = _profile(tmp, name)
@@ -73,7 +49,7 @@ def run_case(tmp, name, seed, withheld=False):
     cli.main(['simulate', '--preset', 'tr12x3', *map(str, opts), *R._sets(R.TRUTH),
               *R._sets(sensors), '-q', '-o', str(rec)])
     if withheld:
-        withhold(rec, tmp / f'{name}_{seed}_bare.mcap')
+        strip_records(rec, tmp / f'{name}_{seed}_bare.mcap')
         rec = tmp / f'{name}_{seed}_bare.mcap'
     main = importlib.import_module('leadscrew_sim.cli.main')
     extra = R._sets(R.HORIZONTAL) if horizontal else []

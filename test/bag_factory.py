@@ -174,3 +174,27 @@ def mcap_doctor(path):
     r = subprocess.run([str(exe), 'doctor', str(path)], capture_output=True, text=True,
                        timeout=120, env=dict(os.environ))
     return True, r.returncode == 0, r.stdout + r.stderr
+
+
+def strip_records(src, dst):
+    """
+    Copy the messages of MCAP ``src`` into ``dst``, without its metadata records.
+
+    As a ``ros2 bag record`` of the node leaves it: no parameters record, so no
+    sensor seed and no sensor model (the mcap library's writer, not ours).
+    """
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+    with open(src, 'rb') as fi, open(dst, 'wb') as fo:
+        w = Writer(fo)
+        w.start(profile='ros2', library='test')
+        schemas, chans = {}, {}
+        for schema, ch, msg in make_reader(fi).iter_messages(log_time_order=False):
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
+                                                       schema.data)
+            if ch.id not in chans:
+                chans[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
+                                                  schemas[schema.id], ch.metadata)
+            w.add_message(chans[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+        w.finish()

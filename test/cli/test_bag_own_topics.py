@@ -11,27 +11,9 @@ the same twin with one command topic only, which must miss by far more.
 """
 import re
 
+from bag_factory import strip_records
 from helpers import cli, cli_ok
-from mcap.reader import make_reader
-from mcap.writer import Writer
 import pytest
-
-
-def strip_records(src, dst):
-    """Copy the messages of MCAP ``src`` into ``dst``, without its metadata records."""
-    with open(src, 'rb') as fi, open(dst, 'wb') as fo:
-        w = Writer(fo)
-        w.start(profile='ros2', library='test')
-        schemas, chans = {}, {}
-        for schema, ch, msg in make_reader(fi).iter_messages(log_time_order=False):
-            if schema.id not in schemas:
-                schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
-                                                       schema.data)
-            if ch.id not in chans:
-                chans[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
-                                                  schemas[schema.id], ch.metadata)
-            w.add_message(chans[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
-        w.finish()
 
 
 @pytest.fixture(scope='module')

@@ -59,7 +59,7 @@ def test_overspeed_trips_in_torque_mode_before_the_nut_reaches_the_end_stop():
     # the fault acts from the next step on: the motor torque is off (the lag: none here)
     assert (r['motor_torque'][k + 1:] == 0.0).all()
     # the torque off, the self-locking thread stops the axis within a few mm of the trip,
-    # far from the end stop 0.2 m away
+    # and never reaches the end stop: it stays 0.1 m above stroke_min
     assert r['nut_position'].min() > p.stroke_min + 0.1
     assert abs(r['nut_velocity'][-1]) < 1e-6
     m.clear_fault()

@@ -11,7 +11,7 @@ from .cache import use_cache_dir
 
 use_cache_dir()      # before numba reads its configuration
 
-try:  # numba is the accelerator (see README, "Why numba"); plain Python also works.
+try:  # numba is the accelerator; plain Python also works.
     from numba import njit
 except ImportError:  # pragma: no cover
     def njit(*args, **kwargs):
