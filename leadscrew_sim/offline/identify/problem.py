@@ -55,21 +55,19 @@ class Problem:
     recorded sensor signals on the same step grid.
     """
 
-    def __init__(self, args, rec, start, delay=None):
+    def __init__(self, args, rec, start):
         """
         Read the recording (a leadscrew_sim one, or foreign with the mapping options).
 
-        A foreign recording's command-to-state ``delay`` (a Delay) is the one
-        given, else the mapping's, else estimated with ``start``.
+        A foreign recording's command-to-state delay is the mapping's, else
+        estimated with ``start`` and fitted with the parameters (:meth:`_aligned`).
         """
         foreign = bool(args.state_topic or args.command_topic) or \
             rec.record(PARAMS_RECORD) is None
         self.start = start
         if foreign:
-            src = ForeignReplay(args, rec, start, estimate_delay=delay is None)
-            if delay is not None:
-                src.set_delay(delay)
-            elif src.delay.how == 'estimated' and not src.delay.half_width <= SHIFT_MAX:
+            src = ForeignReplay(args, rec, start, estimate_delay=True)
+            if src.delay.how == 'estimated' and not src.delay.half_width <= SHIFT_MAX:
                 # with the starting values far from the axis's the estimate can be anywhere
                 # (a falling axis gave -41 +- 365 ms): the search starts from no delay
                 d = src.delay
