@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from . import ageing as AG
 from .drive_control import DriveControl
 from .engine import drive as D
 from .engine import kernel as K
@@ -68,6 +69,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
         self.out = np.zeros(L.NO)
         self._wk, self._iwk = K.workspace()
         self.fault = None
+        self.state[L.S_LUB] = 1.0
+        self.state[L.S_TEMP] = self.params.ambient_temperature
         self.reset()
 
     def set_params(self, params):
@@ -121,14 +124,22 @@ class LeadScrewModel(DriveControl, ReportedValues):
         return n
 
     def reset(self):
-        """Restore the initial state (static seating on the loaded flank; drive in torque mode)."""
+        """
+        Restore the initial state (static seating on the loaded flank; drive in torque mode).
+
+        The ageing state (wear, lubricant, screw temperature:
+        :meth:`ageing_state`) is the axis's history and is kept; a new axis
+        is :meth:`reset_ageing`.
+        """
         p = self.params
         s = self.state
+        aged = s[L.S_WLA:L.S_WLA + L.N_AGEING].copy()
         s[:] = 0.0
+        s[L.S_WLA:L.S_WLA + L.N_AGEING] = aged
         self._wk[:] = 0.0          # the kernel's scratch as new: a reset model is a new model
         self._iwk[:] = 0
         self._P = pack_params(p)
-        q0, xa, xb = initial_seating(p, self._P)
+        q0, xa, xb = initial_seating(p, self._P, (s[L.S_WLA], s[L.S_WUA]))
         s[L.S_Q] = s[L.S_QM] = q0
         s[L.S_XA] = xa
         s[L.S_XB] = xb
@@ -143,8 +154,43 @@ class LeadScrewModel(DriveControl, ReportedValues):
         td = D.update_period(self.nsub, self.dt, p.drive_rate) * (self.dt / self.nsub)
         SN.sample(self._P, s, q0, 0.0, xa, 0.0, td, 1.0, True)   # the readings at rest
         self._report_at_rest()
+        self._report_ageing()
         self._e0 = self._stored_energy()
         return self
+
+    # Ageing -----------------------------------------------------------------
+    _AGEING_SLOTS = dict(zip(AG.STATE_FIELDS, range(L.S_WLA, L.S_WLA + L.N_AGEING)))
+
+    def ageing_state(self):
+        """Return the ageing state (:data:`.ageing.STATE_FIELDS`: m, -, degC) as a dict."""
+        return {name: float(self.state[i]) for name, i in self._AGEING_SLOTS.items()}
+
+    def set_ageing_state(self, values):
+        """
+        Replace the ageing state (a mapping of every :data:`.ageing.STATE_FIELDS`).
+
+        Validated before anything changes (ParameterError names the field).
+        The flanks take their new wear at the next step; :meth:`reset`
+        seats the nut on them.
+        """
+        state = AG.check_state(values)
+        for name, i in self._AGEING_SLOTS.items():
+            self.state[i] = state[name]
+        self._report_ageing()
+
+    def reset_ageing(self):
+        """Make the axis new: no wear, fresh lubricant, the screw at the ambient temperature."""
+        self.set_ageing_state(AG.fresh_state(self.params))
+
+    def relubricate(self):
+        """Renew the lubricant (L = 1); wear and temperature stay."""
+        self.state[L.S_LUB] = 1.0
+        self._report_ageing()
+
+    def _report_ageing(self):
+        """Fill the ageing outputs O_WLA .. O_GROW of the state now (as the kernel)."""
+        o = self.out
+        K.report_ageing(self._P, self.state, o, self.dt)
 
     # Stepping ---------------------------------------------------------------
     def step(self, torque, dt=None, external_force=0.0):
@@ -286,7 +332,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
             res['lost_full_steps'] = lost_full_steps(res['step_position'], res['motor_angle'],
                                                      self.params.rotor_teeth)
         stored = stored_energy(self.params, self._P, rec[:done].T,
-                               rec[:done, L.REC_STATE + L.O_JAM])
+                               rec[:done, L.REC_STATE + L.O_JAM],
+                               rec[:done, L.REC_STATE + L.O_WLA:L.REC_STATE + L.O_WLA + 4].T)
         res.update({name: e - e0 for name, e, e0 in
                     zip(('kinetic', 'potential', 'spring'), stored, self._e0)})
         if done < n:
@@ -416,7 +463,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
 
     def _stored_energy(self):
         """(kinetic, potential, spring) energy of the current state [J]."""
-        return stored_energy(self.params, self._P, self.state)
+        return stored_energy(self.params, self._P, self.state,
+                             wear=self.state[L.S_WLA:L.S_WLA + 4])
 
     def energy(self):
         """Energy bookkeeping since reset [J], with the balance residual."""

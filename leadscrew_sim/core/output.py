@@ -85,7 +85,26 @@ REPORTED = {
     'phase_current_a': (_O + L.O_IA, AS_RECORDED, FLOAT),
     'phase_current_b': (_O + L.O_IB, THETA, FLOAT),
     'current_set': (_O + L.O_ISET, AS_RECORDED, FLOAT),
+    # the ageing (doc/model.md section 19) at the step's end: m, m, m, m, m, N, -, -, -,
+    # degC, W, m
+    'wear_leading_a': (_O + L.O_WLA, AS_RECORDED, FLOAT),
+    'wear_trailing_a': (_O + L.O_WUA, AS_RECORDED, FLOAT),
+    'wear_leading_b': (_O + L.O_WLB, AS_RECORDED, FLOAT),
+    'wear_trailing_b': (_O + L.O_WUB, AS_RECORDED, FLOAT),
+    'backlash': (_O + L.O_BLASH, AS_RECORDED, FLOAT),
+    'preload': (_O + L.O_PRELOAD, AS_RECORDED, FLOAT),
+    'lubricant': (_O + L.O_LUB, AS_RECORDED, FLOAT),
+    'mu_k': (_O + L.O_MUK, AS_RECORDED, FLOAT),
+    'mu_s': (_O + L.O_MUS, AS_RECORDED, FLOAT),
+    'screw_temperature': (_O + L.O_TEMP, AS_RECORDED, FLOAT),
+    'heat_flow': (_O + L.O_HEAT, AS_RECORDED, FLOAT),
+    'thermal_growth': (_O + L.O_GROW, AS_RECORDED, FLOAT),
 }
+
+#: The ageing's values (doc/model.md section 19), in every run's arrays.
+AGEING_VALUES = ('wear_leading_a', 'wear_trailing_a', 'wear_leading_b', 'wear_trailing_b',
+                 'backlash', 'preload', 'lubricant', 'mu_k', 'mu_s', 'screw_temperature',
+                 'heat_flow', 'thermal_growth')
 
 #: The drive's values: in the arrays of a run with command rows only.
 DRIVE_VALUES = ('mode', 'fault', 'limit_min', 'limit_max', 'home', 'following_error',
@@ -303,7 +322,7 @@ def lost_full_steps(step_position, motor_angle, rotor_teeth):
     return 4 * cycles.astype(int)
 
 
-def stored_energy(p, P, s, jam_side=None):
+def stored_energy(p, P, s, jam_side=None, wear=(0.0, 0.0, 0.0, 0.0)):
     """
     Return the (kinetic, potential, spring) energy [J] of a state, or of many.
 
@@ -318,6 +337,11 @@ def stored_energy(p, P, s, jam_side=None):
         column per state slot ``i`` < ``REC_STATE``): then the energies are arrays.
     jam_side : float or numpy.ndarray, optional
         The side the jam blocks (``S_JAM``); default ``s[S_JAM]``.
+    wear : sequence of float or numpy.ndarray
+        Wear depths [m] of the flanks (nut A lower, upper; half-nut B lower,
+        upper): each flank's penetration counts from its worn surface, and a
+        split nut's spring past its free length is the tie of
+        :mod:`.engine.ageing` when the flanks wear.
 
     """
     rigid = P[L.P_RIGID] > 0.5
@@ -336,10 +360,14 @@ def stored_energy(p, P, s, jam_side=None):
         pot += P[L.P_GS] * mb * s[L.S_XB]
         bodies.append(s[L.S_XB])
         stretch = p.backlash + p.preload_force / p.preload_stiffness - (s[L.S_XB] - s[L.S_XA])
-        spring += 0.5 * p.preload_stiffness * stretch ** 2
-    for x in bodies:
+        stiff = p.preload_stiffness
+        if p.wear_rate > 0.0:   # the tie (0.5 k) past the spring's free length
+            stiff = np.where(stretch < 0.0, 0.5 * k, stiff)
+            stiff = stiff if np.ndim(stiff) else float(stiff)
+        spring += 0.5 * stiff * stretch ** 2
+    for x, w_lo, w_up in zip(bodies, wear[0::2], wear[1::2]):
         d = x - rt * s[L.S_Q]
-        for e in (-d - hb, d - hb):
+        for e in (-d - hb - w_lo, d - hb - w_up):
             e = np.maximum(e, 0.0)
             spring += 0.5 * k * e * e
     if not rigid:

@@ -201,6 +201,30 @@ class ScrewParams(Schema):
     fault_drive_fault: bool = field(False, '-', 'latch a drive fault now (torque off); it '
                                     'stays latched while true and ~/clear_fault clears it '
                                     'once false')
+    # Ageing (section 19): wear, lubricant, heat; every rate 0 (off) by default
+    wear_rate: float = field(0.0, 'm/(N m)', 'Archard flank wear: depth per normal force and '
+                             'sliding distance', 0.0, 1e-3)
+    lubricant_life: float = field(0.0, 'm', 'thread sliding distance over which the lubricant '
+                                  'falls to 1/e; 0 means it never runs out', 0.0, 1e12)
+    mu_s_dry: float = field(0.3, '-', 'static thread friction coefficient once the lubricant '
+                            'is used up', 0.0, 2.0)
+    mu_k_dry: float = field(0.25, '-', 'kinetic thread friction coefficient once the '
+                            'lubricant is used up', 0.0, 2.0)
+    screw_heat_capacity: float = field(0.0, 'J/K', 'heat capacity C of the screw; 0 means no '
+                                       'heating', 0.0, 1e8)
+    screw_heat_loss: float = field(0.5, 'W/K', 'heat loss G of the screw to the ambient',
+                                   0.0, 1e6)
+    ambient_temperature: float = field(20.0, 'degC', 'ambient temperature, where the screw '
+                                       'has its nominal length', -100.0, 500.0)
+    heat_to_screw: float = field(0.5, '-', 'share of the thread and bearing friction power '
+                                 'that heats the screw', 0.0, 1.0)
+    thermal_expansion: float = field(11.5e-6, '1/K', 'thermal expansion coefficient alpha '
+                                     'of the screw (steel 11.5e-6)', 0.0, 1e-3)
+    fixed_bearing_x: float = field(0.0, 'm', 'nut position of the fixed bearing, from which '
+                                   'the screw grows', -100.0, 100.0)
+    ageing_speedup: float = field(1.0, '-', 'multiplies the wear and lubricant rates and '
+                                  'divides the heat capacity (time-lapse ageing)', 0.0, 1e12,
+                                  lo_open=True)
     # Anti-backlash split nut (section 7)
     anti_backlash: bool = field(False, '-', 'split anti-backlash nut with preload spring',
                                 read_only=True)
@@ -318,6 +342,11 @@ class ScrewParams(Schema):
             raise ParameterError('mu_s', f"mu' tan(lambda) = {jam:.3g}"
                                  ' >= 1: the thread jams and cannot be driven against a load'
                                  ' (reduce friction or the lead angle)')
+        dry = max(self.mu_s_dry, self.mu_k_dry) * self.thread_factor * math.tan(self.lead_angle)
+        if self.lubricant_life > 0.0 and dry >= 1.0:
+            raise ParameterError('mu_s_dry', f"mu' tan(lambda) = {dry:.3g} >= 1 once the "
+                                 'lubricant is used up: the dry thread jams (reduce the dry '
+                                 'friction or the lead angle)')
         if self.limit_min_position >= self.limit_max_position:
             raise ParameterError('limit_min_position', f'{self.limit_min_position} m must be '
                                  f'below limit_max_position {self.limit_max_position} m')

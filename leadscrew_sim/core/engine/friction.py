@@ -73,6 +73,27 @@ def friction_constants(P):
 
 
 @kernel_jit
+def wet_coefficients(P):
+    """Return (mu_s', mu_k'): the apparent coefficients of the block (the lubricated thread)."""
+    return P[P_MUS], P[P_MUK]
+
+
+@kernel_jit
+def friction_constants_at(P, mus, muk):
+    """
+    Return friction_constants(P) with the apparent coefficients mus and muk instead.
+
+    The Stribeck cut is formed for them (_stribeck_cut); the lubricant of
+    ageing.py moves the coefficients between the wet and the dry thread.
+    """
+    muv = P[P_MUV]
+    drop = mus - muk
+    vst = P[P_VST]
+    dst = P[P_DST]
+    return (muk, muv, drop, vst, 1.0 / vst, dst, _stribeck_cut(muk, drop, dst))
+
+
+@kernel_jit
 def mu_apparent(P, v):
     """
     Apparent Stribeck friction coefficient mu'(|v|), >= 0, from the parameter vector.

@@ -34,7 +34,10 @@ import numpy as np
 from ._jit import kernel_jit, refresh_cache
 from .drive import (FAULT_INJECTED, FAULT_NONE, FAULT_OVERSPEED, MODE_POSITION, MODE_TORQUE,
                     update_period)
+from .friction import friction_constants
 from .sensors import sample
+from .ageing import (ageing_constants, ageing_outputs, ageing_step, flank_gaps, growth_factor,
+                     thread_constants)
 from .impulses import friction_impulses
 from .stepper import (
     command_direction, load_stepper, stepper_constants, stepper_outputs, stepper_substep,
@@ -49,10 +52,10 @@ from .write_back import (
     thread_outputs,
 )
 from .layout import (
-    NO, N_CMD,
+    NO, N_CMD, O_GROW,
     P_CL, P_DJUMP, P_DQ0, P_DRATE, P_DSCALE, P_DSLEW, P_DVMAX, P_DX0, P_EFRZ, P_EIDEAL, P_FEXT,
     P_FINJ, P_HOME, P_HYST, P_JAM, P_JAMX, P_LMAX, P_LMIN, P_DQSD, P_MUC, P_OVS, P_RCOL, P_SFRZ,
-    P_SIDEAL, P_TAU, P_TMAX, P_STEPPER, P_SWMAX, P_TSCALE, P_VFT,
+    P_K, P_SIDEAL, P_TAU, P_TMAX, P_STEPPER, P_SWMAX, P_TSCALE, P_VFT,
     REC_ROW, REC_STATE,
     S_CMODE, S_CQ, S_CT, S_CW, S_EQ, S_EW, S_HOME, S_JAM, S_NREP, S_NSAMP, S_QM, S_SWMAX,
     S_SWMIN,
@@ -64,6 +67,13 @@ from .layout import (
 def workspace():
     """Return the (float, int) scratch arrays that step() and run_series() need."""
     return np.zeros(WK_FLOAT), np.zeros(WK_INT, dtype=np.int64)
+
+
+@kernel_jit
+def _with_friction(lc, fc):
+    """Return the friction constants lc (stages.friction_setup) with the law's fc replaced."""
+    return (lc[0], lc[1], fc, lc[3], lc[4], lc[5], lc[6], lc[7], lc[8], lc[9], lc[10], lc[11],
+            lc[12], lc[13], lc[14], lc[15], lc[16])
 
 
 @kernel_jit
@@ -136,6 +146,18 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     hmi_b = h * mi_b
     lc = friction_setup(P, h, mi_s, mi_a, mi_b)
     rc, sl, cl = lc[0], lc[1], P[P_CL]
+    # ageing (ageing.py): the worn flanks' half gaps, the thread friction at the lubricant
+    # state, the screw's thermal strain; updated after each step while a rate is on
+    ac = ageing_constants(P, dt)
+    ageing_on = ac[0]
+    wr = flank_gaps(S, bc[3])
+    k_tie = 0.5 * P[P_K] if (ac[1] and two_nuts) else 0.0
+    fc0 = lc[2]
+    lc = _with_friction(lc, thread_constants(P, S, fc0))
+    grow = growth_factor(S, ac)
+    grow_on = grow != 0.0
+    x_fix = ac[11]
+    ageing_outputs(P, S, out, 0.0, grow, S[S_XA], lc[2])
     mu_r_col = P[P_MUC] * P[P_RCOL]
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     t_scale = P[P_TSCALE]
@@ -227,7 +249,8 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             if drive_on and d_phase == 0:
                 # drive feedback: the sensors' sample at the end of the last period
                 if ideal_fb:
-                    q_fb = q_ref0 + (xa - x_ref0) * irt if scale_fb else qm
+                    xg = xa + grow * (xa - x_fix) if grow_on else xa
+                    q_fb = q_ref0 + (xg - x_ref0) * irt if scale_fb else qm
                     w_fb = wm
                 else:
                     q_fb = q_ref0 + (S[S_XS] - x_ref0) * irt if scale_fb else S[S_EQ]
@@ -248,7 +271,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 else:
                     te_new = te + alpha * (t_scale * t_sat - te)
                 f_m, f_s, f_a, f_b, ct = smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new,
-                                                       fext, jam_side, jam_x, bc)
+                                                       fext, jam_side, jam_x, bc, wr, k_tie)
                 flo_a, fup_a, flo_b, fup_b = ct[0], ct[1], ct[2], ct[3]
                 # unconstrained velocity
                 wm0 = wm
@@ -296,8 +319,9 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                 d_phase += seg
                 if d_phase >= d_m:   # the end of a drive period: sample the sensors
                     d_phase = 0
-                    if not ideal_fb:
-                        sample(P, S, qm, wm, xa, va, td, beta, False)
+                    if not ideal_fb:   # the scale reads the grown screw's position
+                        sample(P, S, qm, wm, xa + grow * (xa - x_fix) if grow_on else xa, va,
+                               td, beta, False)
         win += 0.5 * h * sum_in
         wext += 0.5 * h * fext * sum_ext
         edamp += 0.5 * h * sum_damp
@@ -335,20 +359,34 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
                     d_tlim, d_qs, d_wqs, d_ferr, d_wref, sw_min, sw_max, home, jam_side)
         if stepper:
             store_stepper(S, ia, ib, s_pos, s_rate, s_k, s_idle)
+        xg = xa + grow * (xa - x_fix) if grow_on else xa   # where the scale sees nut A
         if ideal_fb:   # the readings of ideal sensors: the truth at the step's end
             S[S_EQ] = qm
             S[S_EW] = wm
-            S[S_XS] = xa
+            S[S_XS] = xg
             S[S_VS] = va
         # outputs of the last substep and of the step
         thread_outputs(out, flo_a, fup_a, flo_b, fup_b, ff_a, ff_b, fa_thr, t_br, f_g, dq, va,
                        vb, te, mode_a, mode_b, rc, sl, rt, cl, two_nuts)
         drive_outputs(S, out, nsub, d_mode, d_fault, d_ferr, t_sat, d_wref, drive_on, jam_side)
         # no drive sample at the step's end (and sensors not ideal): the sensors are read now
-        sensor_outputs(P, S, out, qm, wm, q, dq, xa, va, d_phase == 0 or ideal_fb, q_ref0,
+        sensor_outputs(P, S, out, qm, wm, q, dq, xg, va, d_phase == 0 or ideal_fb, q_ref0,
                        x_ref0, rt)
         if stepper:
             stepper_outputs(P, out, ia, ib, s_k, s_rate, i_amp, rt, q_ref0, x_ref0)
+        if ageing_on:   # the step ages the axis; the next step sees the new flanks and friction
+            vs_a = rc * dq + sl * va
+            vs_b = rc * dq + sl * vb
+            heat = ageing_step(S, ac, flo_a / cl, fup_a / cl, flo_b / cl, fup_b / cl, vs_a,
+                               vs_b if two_nuts else 0.0,
+                               abs(ff_a * vs_a) + abs(ff_b * vs_b) + abs(t_br * dq), dt)
+            wr = flank_gaps(S, bc[3])
+            lc = _with_friction(lc, thread_constants(P, S, fc0))
+            grow = growth_factor(S, ac)
+            grow_on = grow != 0.0
+            ageing_outputs(P, S, out, heat, grow, xa, lc[2])
+        elif grow_on:
+            out[O_GROW] = grow * (xa - x_fix)
         for j in range(REC_STATE):
             rec[i, j] = S[j]
         for j in range(NO):
@@ -393,6 +431,14 @@ def step_held(P, S, out, f_in, dt, nsub, wk, iwk):
     row[0, 3] = S[S_CT]
     rec = wk[WK_REC:WK_FLOAT].reshape((1, REC_ROW))   # a scratch record row
     return 0 if _steps(P, S, out, io[0:1], io[1:2], row, dt, nsub, wk, iwk, rec) == 1 else 1
+
+
+@kernel_jit
+def report_ageing(P, S, out, dt):
+    """Write the ageing outputs O_WLA .. O_GROW of the state S (no step: heat flow 0)."""
+    ac = ageing_constants(P, dt)
+    fc = thread_constants(P, S, friction_constants(P))
+    ageing_outputs(P, S, out, 0.0, growth_factor(S, ac), S[S_XA], fc)
 
 
 @kernel_jit

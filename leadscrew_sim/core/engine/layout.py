@@ -116,7 +116,19 @@ P_SNOENC = P_DRATE + 47  # 1.0: no encoder (joint_states reports the commanded s
 P_OVS = P_DRATE + 48    # overspeed trip [rad/s]: a faster motor latches FAULT_OVERSPEED; 0: off
 P_DJUMP = P_DRATE + 49  # max_command_jump as a motor angle [rad]; 0: off
 P_DSLEW = P_DRATE + 50  # rate of the reference toward a command beyond P_DJUMP [rad/s]
-NP = P_DRATE + 51       # length of P
+# ageing (ageing.py, doc/model.md section 19): rates already multiplied by ageing_speedup
+P_WEAR = P_DRATE + 51   # wear_rate times ageing_speedup [m/(N m)]; 0: no flank wear
+P_ILIFE = P_DRATE + 52  # ageing_speedup / lubricant_life [1/m]; 0: the lubricant never runs out
+P_MUSD = P_DRATE + 53   # apparent static coefficient of the dry thread mu_s_dry' [-]
+P_MUKD = P_DRATE + 54   # apparent kinetic coefficient of the dry thread mu_k_dry' [-]
+P_HCAP = P_DRATE + 55   # screw_heat_capacity / ageing_speedup [J/K]; 0: no heat
+P_HLOSS = P_DRATE + 56  # screw_heat_loss to the ambient [W/K]
+P_TAMB = P_DRATE + 57   # ambient_temperature [degC]
+P_H2S = P_DRATE + 58    # heat_to_screw: share of the thread and bearing friction power [-]
+P_ALPHA = P_DRATE + 59  # thermal_expansion of the screw [1/K]
+P_XFIX = P_DRATE + 60   # fixed_bearing_x: where the screw does not move as it grows [m]
+P_ICF = P_DRATE + 61    # cos(psi_n): an apparent coefficient mu' times it is mu [-]
+NP = P_DRATE + 62       # length of P
 
 # State vector S (float64[N_STATE]) --------------------------------------------
 S_QM = 0        # motor angle [rad]
@@ -171,7 +183,15 @@ S_SPOS = 47     # step generator position: the motor angle commanded, unquantise
 S_SRATE = 48    # step generator rate [rad/s]
 S_SK = 49       # microstep index k of the commanded angle P_DQ0 + k microstep [-]
 S_SIDLE = 50    # standstill time since the last microstep [s]
-N_STATE = 51    # length of S
+# ageing (ageing.py): flank wear, lubricant and screw temperature; kept by a reset
+S_WLA = 51      # wear depth of nut A's leading (lower) flank [m]
+S_WUA = 52      # wear depth of nut A's trailing (upper) flank [m]
+S_WLB = 53      # wear depth of half-nut B's leading flank [m]
+S_WUB = 54      # wear depth of half-nut B's trailing flank [m]
+S_LUB = 55      # lubricant state L: 1 fresh .. 0 used up [-]
+S_TEMP = 56     # screw temperature [degC]
+N_AGEING = 6    # slots of the ageing state, from S_WLA
+N_STATE = 57    # length of S
 
 # Per-step outputs out (float64[NO]), values of the last substep -----------------
 O_NLA = 0       # lower flank normal force of nut A [N]
@@ -212,7 +232,20 @@ O_IB = 32       # phase B current [A] (q sense)
 O_SCMD = 33     # commanded motor angle: P_DQ0 + S_SK microsteps [rad]
 O_SRATE = 34    # step generator rate [rad/s]
 O_ISET = 35     # phase current amplitude set: run or hold current, 0 disabled [A]
-NO = 36         # length of out
+# ageing (ageing.py) at the end of the step
+O_WLA = 36      # wear of nut A's leading (lower) flank [m] (S_WLA)
+O_WUA = 37      # wear of nut A's trailing (upper) flank [m]
+O_WLB = 38      # wear of half-nut B's leading flank [m]
+O_WUB = 39      # wear of half-nut B's trailing flank [m]
+O_BLASH = 40    # effective backlash: the set one opened by the wear [m]
+O_PRELOAD = 41  # anti-backlash preload the worn flanks leave [N] (0: single nut)
+O_LUB = 42      # lubricant state L [-]
+O_MUK = 43      # kinetic thread friction coefficient mu_k at L [-]
+O_MUS = 44      # static thread friction coefficient mu_s at L [-]
+O_TEMP = 45     # screw temperature [degC]
+O_HEAT = 46     # heat flow into the screw from the step's friction [W]
+O_GROW = 47     # thermal growth of the screw at nut A [m]
+NO = 48         # length of out
 
 # Records of run_series: one row per step ------------------------------------------
 REC_STATE = 14                  # a row starts with S[0:REC_STATE] (positions .. energies)

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..drive_modes import OVERSPEED_MARGIN
+from . import ageing as AG
 from . import friction as F
 from . import layout as L
 from . import sensors as SN
@@ -68,6 +69,7 @@ def pack_params(p):
     v[L.P_KP] = p.preload_stiffness
     v[L.P_FEXT] = p.external_force
     F.pack_friction(p, v)
+    AG.pack_ageing(p, v)
     SN.pack_sensors(p, v)
     pack_drive(p, v, initial_seating(p, v)[0])
     pack_stepper(p, v)
@@ -142,13 +144,15 @@ def pack_drive(p, v, q0):
     v[L.P_DSLEW] = v[L.P_DVMAX]
 
 
-def initial_seating(p, v):
+def initial_seating(p, v, wear=(0.0, 0.0)):
     """
     Return (q0 [rad], x_a [m], x_b [m]): the initial screw/motor angle (q sense) and nut positions.
 
     The nut rests at ``initial_position`` on the flank its static load presses
     (doc/model.md section 12, initial state); the screw angle follows from the flank
-    penetration of that load.
+    penetration of that load. ``wear``: the wear depths of nut A's lower and
+    upper flank [m], by which a single nut's flanks have receded (a split
+    nut's halves settle on their worn flanks in the first steps).
 
     Parameters
     ----------
@@ -166,7 +170,8 @@ def initial_seating(p, v):
     else:
         f0 = p.external_force - (p.nut_mass + p.payload_mass) * v[L.P_GS]
         delta_a = 0.0 if f0 == 0.0 else (
-            (-hb + f0 / p.contact_stiffness) if f0 < 0 else (hb + f0 / p.contact_stiffness))
+            (-hb - wear[0] + f0 / p.contact_stiffness) if f0 < 0
+            else (hb + wear[1] + f0 / p.contact_stiffness))
     return (x0 - delta_a) / rt, x0, (x0 + p.backlash if p.anti_backlash else x0)
 
 

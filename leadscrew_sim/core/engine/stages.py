@@ -333,15 +333,17 @@ def drive_update(q_fb, w_fb, w_ff, t_ff, w_lo, w_hi, sw_min, sw_max, d_mode, d_q
 # Forces --------------------------------------------------------------------------------------
 
 @kernel_jit
-def _flank_forces(gap, gap_rate, hb, k, c):
+def _flank_forces(gap, gap_rate, hlo, hup, k, c):
     """
     Return (lower, upper) in-plane flank forces [N] and penetrations [m] of a nut body.
 
-    gap = x - r_m tan(lambda) q [m], gap_rate its rate [m/s], hb half the
-    backlash [m]: compliant flanks (k [N/m], c [N s/m]) that never pull.
+    gap = x - r_m tan(lambda) q [m], gap_rate its rate [m/s], hlo, hup the
+    half gaps of the lower and upper flank [m] (half the backlash plus the
+    flank's wear, ageing.flank_gaps): compliant flanks (k [N/m], c [N s/m])
+    that never pull.
     """
-    el = -gap - hb
-    eu = gap - hb
+    el = -gap - hlo
+    eu = gap - hup
     pl = 0.0
     pu = 0.0
     if el > 0.0:
@@ -352,14 +354,17 @@ def _flank_forces(gap, gap_rate, hb, k, c):
 
 
 @inline_jit
-def smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new, fext, jam_side, jam_x, bc):
+def smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new, fext, jam_side, jam_x, bc, wr, k_tie):
     """
     Return the smooth generalised forces of a substep and its contact forces.
 
     qm, q [rad], xa, xb [m], wm, dq [rad/s], va, vb [m/s]: positions and rates
     at the substep start; te_new: applied motor torque [N m]; fext: total
     external force on nut A [N]; jam_side: 1 or -1, the side of jam_x [m] the
-    jam blocks (0: no jam); bc: body_constants. Returns (f_m, f_s, f_a, f_b,
+    jam blocks (0: no jam); bc: body_constants; wr: the flanks' half gaps
+    (ageing.flank_gaps); k_tie [N/m]: stiffness of the preload spring's end of
+    travel, a tie that holds the halves of a split nut at the spring's free
+    length (0: none, the spring is linear throughout). Returns (f_m, f_s, f_a, f_b,
     ct): forces on motor, screw [N m], nut A, half-nut B [N], and ct =
     (flo_a, fup_a, flo_b, fup_b, pen_lo_a, pen_up_a, pen_lo_b, pen_up_b,
     f_stop_lo, pen_stop_lo, f_stop_hi, pen_stop_hi, f_jam, pen_jam): in-plane
@@ -406,7 +411,9 @@ def smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new, fext, jam_side, jam_x, 
             f_jam = max(0.0, kes * pen_jam + ces * jam_side * va)
             f_a -= jam_side * f_jam
     # thread contact of nut A
-    flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq, half_b, k, c)
+    hlo_a, hup_a, hlo_b, hup_b = wr
+    flo_a, fup_a, pen_lo_a, pen_up_a = _flank_forces(xa - rt * q, va - rt * dq, hlo_a, hup_a,
+                                                     k, c)
     fn_a = flo_a - fup_a
     f_a += fn_a
     f_s -= rt * fn_a
@@ -416,11 +423,13 @@ def smooth_forces(qm, q, xa, xb, wm, dq, va, vb, te_new, fext, jam_side, jam_x, 
     pen_up_b = 0.0
     if two_nuts:   # thread contact of half-nut B and the preload spring
         flo_b, fup_b, pen_lo_b, pen_up_b = _flank_forces(xb - rt * q, vb - rt * dq,
-                                                         half_b, k, c)
+                                                         hlo_b, hup_b, k, c)
         fn_b = flo_b - fup_b
         f_b += fn_b
         f_s -= rt * fn_b
         f_spring = f_pre + k_pre * (backlash - (xb - xa))
+        if k_tie > 0.0 and f_spring < 0.0:   # past the free length: the tie pulls
+            f_spring *= k_tie / k_pre
         f_b += f_spring
         f_a -= f_spring
     return f_m, f_s, f_a, f_b, (flo_a, fup_a, flo_b, fup_b, pen_lo_a, pen_up_a, pen_lo_b,
