@@ -58,6 +58,8 @@ def add_arguments(p):
                    '[s, a parameter such as fault.jam, a YAML scalar]; each change acts from '
                    'the first step at or after its time')
     p.add_argument('--clock', action='store_true', help='also record /clock every tick')
+    p.add_argument('--ageing-from', metavar='RECORDING', help='start the axis worn, '
+                   'lubricated and warm as this recording of the same axis ended')
     add_compression_argument(p)
     p.add_argument('--output', '-o', metavar='FILE.mcap',
                    help='output MCAP (default runs/sim_<preset>_<time>.mcap)')

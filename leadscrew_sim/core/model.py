@@ -50,6 +50,8 @@ class LeadScrewModel(DriveControl, ReportedValues):
         Physical parameters (default: ``ScrewParams()``, the field defaults).
     dt : float
         Fixed step [s]; the model integrates it in ``nsub`` equal substeps.
+    ageing : dict, optional
+        The ageing state to start from (:meth:`ageing_state`); default a new axis.
 
     Raises
     ------
@@ -58,7 +60,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
 
     """
 
-    def __init__(self, params=None, dt=1e-3):
+    def __init__(self, params=None, dt=1e-3, ageing=None):
         """Create the model at its initial state for a fixed step dt [s]."""
         self.params = params if params is not None else ScrewParams()
         self._P = pack_params(self.params)
@@ -71,6 +73,10 @@ class LeadScrewModel(DriveControl, ReportedValues):
         self.fault = None
         self.state[L.S_LUB] = 1.0
         self.state[L.S_TEMP] = self.params.ambient_temperature
+        if ageing is not None:
+            aged = AG.check_state(ageing)
+            for name, i in self._AGEING_SLOTS.items():
+                self.state[i] = aged[name]
         self.reset()
 
     def set_params(self, params):

@@ -264,6 +264,8 @@ def series_result(r, hs, drive, cl=1.0, sl=0.0, stepper=False):
     res['nut_force'], res['nut_b_force'] = nut_forces(
         res['normal_leading'], res['normal_trailing'], res['friction_force'],
         res['axial_force'], cl, sl)
+    res['wear_leading'] = res['wear_leading_a'] + res['wear_leading_b']
+    res['wear_trailing'] = res['wear_trailing_a'] + res['wear_trailing_b']
     if drive:
         res.update(_arrays(_DRIVE, r, hs))
     if stepper:

@@ -76,10 +76,17 @@ class RunSettings(Schema):
         f'{8 * MIN_SPLIT_BYTES}', 0, 2 ** 62)
     stats_file: str = field('', '-', 'if set, write timing statistics (JSON) to this path at '
                             'shutdown (start-up only)', read_only=True)
+    ageing_state_file: str = field('', '-', 'if set, the ageing state (wear, lubricant, screw '
+                                   'temperature) is loaded from this file at start and written '
+                                   'to it at shutdown and every ageing_state_period (start-up '
+                                   'only)', read_only=True)
+    ageing_state_period: float = field(60.0, 's', 'how often the ageing state file is written '
+                                       '(wall time)', 1.0, 86400.0)
 
     def _check_consistency(self):
         """Check the rules of the string and split settings beyond their type and range."""
-        for name in ('record_prefix', 'record_dir', 'stats_file', 'joint_prefix',
+        for name in ('record_prefix', 'record_dir', 'stats_file', 'ageing_state_file',
+                     'joint_prefix',
                      'record_split_bytes', 'record_split_seconds', 'record_max_total_bytes'):
             check_rule(name, getattr(self, name))
 
@@ -90,7 +97,7 @@ def check_rule(name, value):
     if name == 'record_prefix' and not PREFIX_RE.match(value):
         raise ParameterError(name, f'{shown} must be 1 to 64 letters, digits, _ or - '
                              '(it starts the file names: no paths)')
-    if name in ('record_dir', 'stats_file', 'joint_prefix') and any(
+    if name in ('record_dir', 'stats_file', 'ageing_state_file', 'joint_prefix') and any(
             ord(c) < 32 or ord(c) == 127 for c in value):
         raise ParameterError(name, f'{shown} contains control characters')
     if name == 'record_dir' and not value:

@@ -21,6 +21,9 @@ _ANALYSIS = Reading(('contact', 'stick_a', 'normal_leading', 'normal_trailing', 
                      'normal_trailing_b', 'friction_force_b', 'sliding_velocity_b'))
 _ENERGY = ('input_work', 'external_work', 'kinetic', 'potential', 'spring',
            'friction_dissipation', 'damping_dissipation')
+_AGEING = Reading(('wear_leading_a', 'wear_leading_b', 'wear_trailing_a', 'wear_trailing_b',
+                   'backlash', 'preload', 'lubricant', 'mu_k', 'mu_s', 'screw_temperature',
+                   'heat_flow', 'thermal_growth'))
 
 
 class ReportedValues:
@@ -62,8 +65,24 @@ class ReportedValues:
         B, then input_work, external_work, kinetic, potential, spring,
         friction_dissipation, damping_dissipation [J] of :meth:`energy`):
         contact 1 leading flank, -1 trailing, 0 in the backlash; stick 1 stuck,
-        0 sliding, -1 no load.
+        0 sliding, -1 no load. Then the ageing of :meth:`ageing_values`.
         """
         e = self.energy()
-        v = _ANALYSIS(record_row(self.state, self.out), self.params.hand_sign)
-        return (*v, *(float(e[k]) for k in _ENERGY))
+        row = record_row(self.state, self.out)
+        v = _ANALYSIS(row, self.params.hand_sign)
+        return (*v, *(float(e[k]) for k in _ENERGY), *self._ageing_of(row))
+
+    def ageing_values(self):
+        """
+        Return the ageing of the axis as floats: the fields of a ``sim/ageing`` message.
+
+        (wear_leading, wear_trailing [m] summed over the nut bodies, the
+        effective backlash [m], the preload [N], lubricant [-], mu_k, mu_s
+        [-], screw_temperature [degC], heat_flow into the screw [W],
+        thermal_growth at the nut [m]): :data:`.ageing.REPORTED_FIELDS`.
+        """
+        return self._ageing_of(record_row(self.state, self.out))
+
+    def _ageing_of(self, row):
+        v = _AGEING(row, 1.0)
+        return (v[0] + v[1], v[2] + v[3], *v[4:])

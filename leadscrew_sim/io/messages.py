@@ -36,20 +36,30 @@ TRUTH_VALUES = ('motor_angle', 'screw_angle', 'nut_position', 'nut_b_position',
                 'motor_velocity', 'screw_velocity', 'nut_velocity', 'nut_b_velocity',
                 'motor_torque', 'thread_torque', 'nut_force', 'nut_b_force', 'axial_force')
 
-#: The thread contact and energy of one tick (``LeadScrewModel.analysis_values()``), the
-#: fields of ``sim/thread_state`` (type leadscrew_sim/msg/ThreadState, recorded only).
-ANALYSIS_VALUES = ('contact_a', 'stick_a', 'normal_leading_a', 'normal_trailing_a',
-                   'friction_a', 'sliding_velocity_a', 'contact_b', 'stick_b',
-                   'normal_leading_b', 'normal_trailing_b', 'friction_b', 'sliding_velocity_b',
-                   'input_work', 'external_work', 'kinetic', 'potential', 'spring',
-                   'friction_dissipation', 'damping_dissipation')
+#: The thread contact and energy of one tick, the fields of ``sim/thread_state`` (type
+#: leadscrew_sim/msg/ThreadState, recorded only).
+THREAD_VALUES = ('contact_a', 'stick_a', 'normal_leading_a', 'normal_trailing_a',
+                 'friction_a', 'sliding_velocity_a', 'contact_b', 'stick_b',
+                 'normal_leading_b', 'normal_trailing_b', 'friction_b', 'sliding_velocity_b',
+                 'input_work', 'external_work', 'kinetic', 'potential', 'spring',
+                 'friction_dissipation', 'damping_dissipation')
+
+#: The ageing of one tick, the fields of ``sim/ageing`` (type leadscrew_sim/msg/AgeingState;
+#: m, m, m, N, -, -, -, degC, W, m).
+AGEING_VALUES = ('wear_leading', 'wear_trailing', 'backlash', 'preload', 'lubricant', 'mu_k',
+                 'mu_s', 'screw_temperature', 'heat_flow', 'thermal_growth')
+
+#: The recorded-only values of one tick (``LeadScrewModel.analysis_values()``): the thread
+#: state's, then the ageing's.
+ANALYSIS_VALUES = THREAD_VALUES + AGEING_VALUES
 
 #: The ``model.run()`` column of each analysis value.
 ANALYSIS_COLUMNS = ('contact', 'stick_a', 'normal_leading', 'normal_trailing',
                     'friction_force', 'sliding_velocity', 'contact_b', 'stick_b',
                     'normal_leading_b', 'normal_trailing_b', 'friction_force_b',
                     'sliding_velocity_b', 'input_work', 'external_work', 'kinetic',
-                    'potential', 'spring', 'friction_dissipation', 'damping_dissipation')
+                    'potential', 'spring', 'friction_dissipation',
+                    'damping_dissipation') + AGEING_VALUES
 
 #: The joints of ``sim/joint_states`` (after the joint prefix); nut_b_joint only with a
 #: split nut.
@@ -71,7 +81,8 @@ STATE_VALUES = {
     'nut_position': (False, 'sensor', ('nut_position',)),
     'thread_force': (True, 'truth', ('axial_force', 'thread_torque')),
     'sim/joint_states': (True, 'truth', _truth_names(False)),
-    'sim/thread_state': (True, 'analysis', ANALYSIS_VALUES),
+    'sim/thread_state': (True, 'analysis', THREAD_VALUES),
+    'sim/ageing': (True, 'analysis', AGEING_VALUES),
 }
 
 #: The topics of each group.
@@ -80,20 +91,25 @@ TRUTH_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'truth
 ANALYSIS_TOPICS = tuple(t for t, (_s, g, _v) in STATE_VALUES.items() if g == 'analysis')
 
 
-def analysis_template():
-    """Template of a leadscrew_sim/msg/ThreadState: header, then the 19 float64 fields."""
+def analysis_template(fields=THREAD_VALUES):
+    """Template of a leadscrew_sim/msg/ThreadState (or of another type): header, float64 fields."""
     w = CdrWriter()
     stamp_off = w.stamp(0, 0)
     w.string('')
-    return Template(w.buf, stamp_off, [w.f64(0.0) for _ in ANALYSIS_VALUES])
+    return Template(w.buf, stamp_off, [w.f64(0.0) for _ in fields])
 
 
-def decode_analysis(data):
-    """Return (stamp_ns, {name: value} of :data:`ANALYSIS_VALUES`) of a sim/thread_state."""
+def decode_analysis(data, fields=THREAD_VALUES):
+    """Return (stamp_ns, {name: value} of :data:`THREAD_VALUES`) of a sim/thread_state."""
     r = CdrReader(data)
     stamp = r.stamp()
     r.string()
-    return stamp, {name: r.f64() for name in ANALYSIS_VALUES}
+    return stamp, {name: r.f64() for name in fields}
+
+
+def decode_ageing(data):
+    """Return (stamp_ns, {name: value} of :data:`AGEING_VALUES`) of a sim/ageing."""
+    return decode_analysis(data, AGEING_VALUES)
 
 
 class StateEncoder:
@@ -128,6 +144,7 @@ class StateEncoder:
             'thread_force': wrench_template(),
             'sim/joint_states': joint_state_template(self.truth_joints, n, n, n),
             'sim/thread_state': analysis_template(),
+            'sim/ageing': analysis_template(AGEING_VALUES),
         }
         self.joint_states = self.templates['joint_states']
         self.nut_position = self.templates['nut_position']

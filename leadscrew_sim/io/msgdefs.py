@@ -65,6 +65,19 @@ EMBEDDED = {
         'float64 spring\n'
         'float64 friction_dissipation\n'
         'float64 damping_dissipation\n'),
+    'leadscrew_sim/msg/AgeingState': (
+        '# The ageing of the axis at one tick (leadscrew_sim; SI units, temperature in degC).\n'
+        'std_msgs/Header header\n'
+        'float64 wear_leading  # wear depth of the leading flanks, summed over the nut bodies [m]\n'
+        'float64 wear_trailing  # the same of the trailing flanks [m]\n'
+        'float64 backlash  # effective backlash: the set one opened by the wear [m]\n'
+        'float64 preload  # anti-backlash preload the worn flanks leave [N]; 0 single nut\n'
+        'float64 lubricant  # lubricant state: 1 fresh, 0 used up [-]\n'
+        'float64 mu_k  # kinetic thread friction coefficient now [-]\n'
+        'float64 mu_s  # static thread friction coefficient now [-]\n'
+        'float64 screw_temperature  # [degC]\n'
+        'float64 heat_flow  # friction heat flowing into the screw [W]\n'
+        'float64 thermal_growth  # growth of the screw at the nut [m]\n'),
 }
 #: RIHS01 type hashes of the :data:`EMBEDDED` types, computed with rosidl's algorithm
 #: (``leadscrew_sim.io.tf.tfmessage_type_hash`` recomputes the TFMessage one).

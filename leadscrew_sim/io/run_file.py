@@ -21,7 +21,8 @@ from pathlib import Path
 from . import messages as M, topics as T, tf as TF
 from ..core import fields
 from ..core.commands import COMMAND_LOG_TIME
-from ..core.params import ScrewParams
+from ..core.ageing import check_state
+from ..core.params import ParameterError, ScrewParams
 from ..core.settings import RunSettings
 from ..core.errors import LeadscrewError
 
@@ -35,6 +36,12 @@ RESET_RECORD = 'leadscrew_sim_reset'
 CLEAR_FAULT_RECORD = 'leadscrew_sim_clear_fault'
 #: Metadata record of the command line that wrote the file.
 CLI_RECORD = 'leadscrew_sim_cli'
+#: Metadata record of a ``~/relubricate`` of the node (the lubricant renewed).
+RELUBRICATE_RECORD = 'leadscrew_sim_relubricate'
+#: Metadata record of the ageing state at the end of a run (written when it closes).
+AGEING_END_RECORD = 'leadscrew_sim_ageing_end'
+#: Prefix of the ageing state's keys in the parameters record: the state at the run's start.
+AGEING_KEY = 'ageing.'
 
 #: The description channels of a run file: key in ``RunWriter.ids`` -> (topic, type, QoS);
 #: topics as robot_state_publisher publishes them (robot_description in the namespace).
@@ -183,6 +190,28 @@ def parameters_record(params, preset, update_rate, dt_ns, run_overrides=None):
                   clock_mode='simulate', dt_ns=str(dt_ns), t0_ns='0',
                   command_log_time=COMMAND_LOG_TIME)
     return values
+
+
+def ageing_record(state):
+    """Return the keys of an ageing state (a dict of floats) in a parameters record."""
+    return {AGEING_KEY + name: repr(float(v)) for name, v in state.items()}
+
+
+def ageing_from_record(record):
+    """
+    Return the ageing state a parameters record holds (a dict of floats), or None.
+
+    Raises ParameterError naming the field of a malformed or out-of-range state.
+    """
+    values = {k[len(AGEING_KEY):]: v for k, v in record.items() if k.startswith(AGEING_KEY)}
+    if not values:
+        return None
+    try:
+        values = {k: float(v) for k, v in values.items()}
+    except ValueError:
+        raise ParameterError('ageing', f'{values!r} holds a value that is not a number') \
+            from None
+    return check_state(values, 'recorded ageing state')
 
 
 def params_from_record(record):

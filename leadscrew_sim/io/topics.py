@@ -26,6 +26,7 @@ TOPIC_SPECS = {
     'thread_force': ('geometry_msgs/msg/WrenchStamped', 'state', RELIABLE_10),
     'sim/joint_states': ('sensor_msgs/msg/JointState', 'state', RELIABLE_10),
     'sim/thread_state': ('leadscrew_sim/msg/ThreadState', 'record', RELIABLE_10),
+    'sim/ageing': ('leadscrew_sim/msg/AgeingState', 'record', RELIABLE_10),
     'diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'diagnostics', RELIABLE_10),
     'limit_switch/min': ('std_msgs/msg/Bool', 'switch', LATCHED_1),
     'limit_switch/max': ('std_msgs/msg/Bool', 'switch', LATCHED_1),

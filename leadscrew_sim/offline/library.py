@@ -98,7 +98,7 @@ def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=N
              position=None, position_csv=None, accel=0.1, amplitude=None, frequency=1.0,
              step_time=0.1, target=None, speed=0.01, excite=None, excite_opt=None,
              force=None, force_csv=None, faults=None, clock=False, compression='lz4',
-             output=None):
+             output=None, ageing_from=None):
     """
     Run the model offline as ``leadscrew_sim simulate`` does; return a :class:`SimulateResult`.
 
@@ -156,6 +156,9 @@ def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=N
         lz4, zstd or none.
     output : str, optional
         The MCAP file to write (None: a temporary one, removed).
+    ageing_from : str, optional
+        A recording of the same axis: start from the ageing state (wear,
+        lubricant, screw temperature) it ended with.
 
     Raises
     ------
@@ -178,7 +181,7 @@ def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=N
                    frequency=frequency, step_time=step_time, target=target, speed=speed,
                    excite=excite, excite_opt=_opt_sets(excite_opt), force=force,
                    force_csv=force_csv, faults=faults, clock=clock, compression=compression,
-                   output=str(path), quiet=True)
+                   output=str(path), quiet=True, ageing_from=ageing_from)
     try:
         done = run_simulate(opts, lambda text: None)
         time, x = _nut_positions(path)

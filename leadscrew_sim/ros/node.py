@@ -59,6 +59,7 @@ from ..io.recorder import Recorder
 from ..io.run_file import UPDATE_RECORD
 from ..io.session import StorageOptions
 from ..io.topics import graph_name, TOPIC_SPECS
+from .ageing import AxisAgeing
 from .command_callbacks import CommandCallbacks
 from .commands import CommandInputs
 from .description import RobotDescription
@@ -81,7 +82,7 @@ COMMAND_QOS = qos_profile(TOPIC_SPECS['torque_command'][2])
 STATE_QOS = qos_profile(TOPIC_SPECS['joint_states'][2])
 
 
-class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Node):
+class LeadScrewSimNode(AxisAgeing, AxisServices, ClockLoops, CommandCallbacks, Stepping, Node):
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
@@ -117,6 +118,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
         self._live = None
         live_host, live_port = declare_live_view(self)
         self._build_interfaces()
+        self._start_ageing()
         self._build_description()
         if live_port:
             self._start_live_view(live_host, live_port)
@@ -205,6 +207,7 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
             if new.record:
                 self._start_recording()
             else:
+                self._note_ageing_end()
                 self.recorder.stop(wait=False)
                 self.get_logger().info('recording stopped')
 
@@ -285,7 +288,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
     def _start_recording(self):
         """Start a recording; log and return the file it writes (None if it failed)."""
         if not self.recorder.start(StorageOptions.from_run_settings(self.settings),
-                                   self.recording_channels(), self.all_parameter_values()):
+                                   self.recording_channels(),
+                                   dict(self.all_parameter_values(), **self.ageing_metadata())):
             return None
         if self._desc is not None:
             self._desc.publish_static(self._sim_now(), self.recorder)
@@ -316,6 +320,8 @@ class LeadScrewSimNode(AxisServices, ClockLoops, CommandCallbacks, Stepping, Nod
                     json.dump(self.timing_stats(), fh, indent=1)
             except OSError as exc:
                 self.get_logger().error(f'cannot write stats_file {path!r}: {exc}')
+        self._save_ageing()
+        self._note_ageing_end()
         self.recorder.stop()
         if self._live is not None:
             self._live.stop()

@@ -85,6 +85,7 @@ class Stepping:
             if self.sink.active:
                 for topic, data in enc.analysis(stamp, model.analysis_values()):
                     self.sink.write(self._rec_topic[topic], data, stamp)
+            self._publish_ageing()
         if values is not None and self._desc is not None:
             self._desc.publish_tf(s_stamp, values[0], values[1], self.sink, self._publishing)
 

@@ -12,10 +12,11 @@ from ..options import NS, RunError
 from ...core.commands import CommandHold, DROPPED, JOINT_COMMAND_MODES, NutMap, REJECTED
 from ...core.params import ParameterError, ScrewParams
 from ...io import cdr as C
-from ...io.run_file import CLEAR_FAULT_RECORD, RESET_RECORD, run_setting, UPDATE_RECORD
+from ...io.run_file import (CLEAR_FAULT_RECORD, RELUBRICATE_RECORD, RESET_RECORD, run_setting,
+                            UPDATE_RECORD)
 
 #: The recorded events that act on the model itself; a stretch of one compiled call ends there.
-MODEL_EVENTS = (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD)
+MODEL_EVENTS = (UPDATE_RECORD, RESET_RECORD, CLEAR_FAULT_RECORD, RELUBRICATE_RECORD)
 
 #: The std_msgs/Float64 drive commands, by their CommandHold method.
 FLOAT_COMMANDS = ('torque_command', 'velocity_command', 'position_command')

@@ -20,7 +20,8 @@ from ...core.delivery import StateDelivery
 from ...core.params import ParameterError, ScrewParams
 from ...io import messages as M, topics as T
 from ...io.record_fill import Stamps
-from ...io.run_file import (CLEAR_FAULT_RECORD, PARAMS_RECORD, params_from_record, RESET_RECORD,
+from ...io.run_file import (ageing_from_record, CLEAR_FAULT_RECORD, PARAMS_RECORD,
+                            params_from_record, RELUBRICATE_RECORD, RESET_RECORD,
                             run_setting, UPDATE_RECORD)
 from ...io.tick_writer import Events, Stream, write_block
 
@@ -67,6 +68,10 @@ class Resim:
             raise RunError(f'{rec.path}: recorded {exc}') from None
         self.params = ScrewParams.from_dict(self.overrides, base=params) \
             if self.overrides else params
+        try:        # the axis's ageing at the recording's start (None: a new axis)
+            self.ageing = ageing_from_record(meta)
+        except ParameterError as exc:
+            raise RunError(f'{rec.path}: recorded {exc}') from None
         try:
             rate = float(run_setting(meta, 'update_rate', 1000.0))
             self.dt_ns = int(meta.get('dt_ns') or round(NS / rate))
@@ -200,7 +205,7 @@ class Resim:
         """Return a new model with the recorded parameters and ``overrides`` (names: values)."""
         from ...core.model import LeadScrewModel
         params = ScrewParams.from_dict(overrides, base=self.params) if overrides else self.params
-        return LeadScrewModel(params, dt=self.dt_ns / NS)
+        return LeadScrewModel(params, dt=self.dt_ns / NS, ageing=self.ageing)
 
     def blocks(self, model, line=None, overrides=None, progress=None, block_ticks=None,
                log=None):
@@ -352,6 +357,8 @@ class Resim:
                 line.reset()
         elif kind == CLEAR_FAULT_RECORD:
             model.clear_fault()
+        elif kind == RELUBRICATE_RECORD:
+            model.relubricate()
 
     def joint_labels(self):
         """Return the two joint names."""

@@ -32,7 +32,9 @@ from ...core.delivery import StateDelivery
 from ...core.drive_modes import FAULT_NONE
 from ...core.fields import public_name
 from ...core.params import ScrewParams
-from ...io.run_file import (CLEAR_FAULT_RECORD, CLI_RECORD, PARAMS_RECORD, parameters_record,
+from .ageing_from import ageing_at_end
+from ...io.run_file import (AGEING_END_RECORD, ageing_record, CLEAR_FAULT_RECORD, CLI_RECORD,
+                            PARAMS_RECORD, parameters_record,
                             RunWriter, UPDATE_RECORD)
 from ...analysis.excitation.commission import SEGMENTS_RECORD
 
@@ -125,7 +127,10 @@ def _simulate(args, warn):
         first = {n: v for n, v in schedule.pop(0)[1].items() if n != CLEAR_FAULT}
         log.change(0, first)                # nothing latched to clear at the start
         params = ScrewParams.from_dict(first, base=params)
-    model = LeadScrewModel(params, dt=dt_ns / NS)
+    ageing = None
+    if getattr(args, 'ageing_from', None):
+        ageing = ageing_at_end(args.ageing_from, params)
+    model = LeadScrewModel(params, dt=dt_ns / NS, ageing=ageing)
     if drive is not None and drive[1] == 'mixed':       # commission: a topic per part
         torque_fn = MixedInput(drive[0], model, prefix)
     elif drive is not None:
@@ -133,8 +138,9 @@ def _simulate(args, warn):
     out = args.output or f'runs/sim_{label}_{time.strftime("%Y%m%d-%H%M%S")}.mcap'
     w = RunWriter(out, prefix, clock=args.clock, params=params,
                   compression=compression_of(args))
-    w.rec.add_metadata(PARAMS_RECORD, parameters_record(
-        params, label, rate, dt_ns, {'joint_prefix': prefix} if prefix else None))
+    w.rec.add_metadata(PARAMS_RECORD, dict(parameters_record(
+        params, label, rate, dt_ns, {'joint_prefix': prefix} if prefix else None),
+        **ageing_record(model.ageing_state())))
     w.rec.add_metadata(CLI_RECORD, {
         'command': 'simulate', 'argv': ' '.join(sys.argv[1:]), 'torque_input': torque_desc,
         'force_input': force_desc, 'steps': str(n_steps)})
@@ -147,6 +153,8 @@ def _simulate(args, warn):
             stats = simulate_loop(model, n_steps, dt_ns, torque_fn, force_fn, w,
                                   Progress(n_steps, 'simulate', args.quiet), args.clock,
                                   schedule, log)
+        w.rec.add_metadata(AGEING_END_RECORD, dict(
+            log_time_ns=str(n_steps * dt_ns), **ageing_record(model.ageing_state())))
     finally:
         size = w.close()
     return SimulatedRun(out, size, rate, n_steps, model.nsub, n_steps * dt_ns / NS,
