@@ -173,11 +173,17 @@ class LeadScrewModel(DriveControl, ReportedValues):
 
     def set_ageing_state(self, values):
         """
-        Replace the ageing state (a mapping of every :data:`.ageing.STATE_FIELDS`).
+        Replace the ageing state.
 
         Validated before anything changes (ParameterError names the field).
         The flanks take their new wear at the next step; :meth:`reset`
         seats the nut on them.
+
+        Parameters
+        ----------
+        values : mapping
+            Every field of :data:`.ageing.STATE_FIELDS` (m, -, degC).
+
         """
         state = AG.check_state(values)
         for name, i in self._AGEING_SLOTS.items():

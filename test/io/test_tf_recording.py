@@ -368,7 +368,8 @@ def test_tick_order(tf_run):
         expected.append(('/torque_command', k * ms))
         expected += [(t, (k + 1) * ms) for t in ('/axis/joint_states', '/nut_position',
                                                  '/thread_force', '/sim/joint_states',
-                                                 '/sim/thread_state', '/tf', '/clock')]
+                                                 '/sim/thread_state', '/sim/ageing', '/tf',
+                                                 '/clock')]
     assert seq == expected
 
 
