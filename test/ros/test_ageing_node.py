@@ -97,7 +97,7 @@ def test_a_restarted_node_continues_from_the_saved_ageing(tmp_path, ros):
         second.stop(signal.SIGKILL)
     start = _metadata(_recording(tmp_path, 'second'), PARAMS_RECORD)
     assert {k: float(start[AGEING_KEY + k]) for k in saved} == saved
-    assert read_state(state_file, load_preset('tr12x3'), 'tr12x3')['lubricant'] == 1.0
+    assert read_state(state_file, load_preset('tr12x3'), 'tr12x3')['lubricant'] > 1.0 - 1e-9
 
 
 @pytest.mark.timeout(120)
