@@ -31,7 +31,7 @@ O_WLA .. O_GROW.
 import math
 
 from ._jit import kernel_jit
-from .friction import friction_constants_at, wet_coefficients
+from .friction import friction_constants_at, mixed_cut, wet_coefficients
 from .layout import (
     O_BLASH, O_GROW, O_HEAT, O_LUB, O_MUK, O_MUS, O_PRELOAD, O_TEMP, O_WLA, O_WLB, O_WUA,
     O_WUB, P_ALPHA, P_AB, P_B, P_FP, P_H2S, P_HCAP, P_HLOSS, P_ICF, P_ILIFE, P_KP, P_MUKD,
@@ -62,10 +62,11 @@ def ageing_constants(P, dt):
     Return ac, the constants of the ageing for steps of dt [s].
 
     ac = (rates_on, wear_on, lub_on, heat_on, wear, ilife, decay, gain, t_amb,
-    h2s, alpha, x_fix): some rate is on, and which; wear: scaled wear rate
+    h2s, alpha, x_fix, zcut): some rate is on, and which; wear: scaled wear rate
     [m/(N m)]; ilife: scaled 1 / lubricant_life [1/m]; decay, gain: the
     temperature's step response, T - T_amb <- (T - T_amb) decay + P gain
-    (gain [K/W]); t_amb [degC]; h2s: heat_to_screw; alpha [1/K]; x_fix [m].
+    (gain [K/W]); t_amb [degC]; h2s: heat_to_screw; alpha [1/K]; x_fix [m];
+    zcut: the Stribeck cut of any mix of wet and dry thread (friction.mixed_cut).
     """
     wear = P[P_WEAR]
     ilife = P[P_ILIFE]
@@ -83,7 +84,7 @@ def ageing_constants(P, dt):
     wear_on = wear > 0.0
     lub_on = ilife > 0.0
     return (wear_on or lub_on or heat_on, wear_on, lub_on, heat_on, wear, ilife, decay, gain,
-            P[P_TAMB], P[P_H2S], P[P_ALPHA], P[P_XFIX])
+            P[P_TAMB], P[P_H2S], P[P_ALPHA], P[P_XFIX], mixed_cut(P, P[P_MUSD], P[P_MUKD]))
 
 
 @kernel_jit
@@ -98,19 +99,20 @@ def flank_gaps(S, half_b):
 
 
 @kernel_jit
-def thread_constants(P, S, fc):
+def thread_constants(P, S, fc, ac):
     """
     Return the friction law's constants at the lubricant state of S.
 
-    fc itself while the lubricant is fresh (L = 1), else
-    friction.friction_constants_at the mixed coefficients.
+    fc (the wet thread's) itself while the lubricant is fresh (L = 1), else
+    friction.friction_constants_at the mixed coefficients, with the cut of
+    ageing_constants ac.
     """
     lub = S[S_LUB]
     if lub == 1.0:
         return fc
     mus, muk = wet_coefficients(P)
-    return friction_constants_at(P, mus * lub + P[P_MUSD] * (1.0 - lub),
-                                 muk * lub + P[P_MUKD] * (1.0 - lub))
+    return friction_constants_at(fc, mus * lub + P[P_MUSD] * (1.0 - lub),
+                                 muk * lub + P[P_MUKD] * (1.0 - lub), ac[12])
 
 
 @kernel_jit
@@ -130,7 +132,7 @@ def ageing_step(S, ac, nla, nua, nlb, nub, vs_a, vs_b, p_fric, dt):
     friction power [W]; ac: ageing_constants.
     """
     (_on, wear_on, lub_on, heat_on, wear, ilife, decay, gain, t_amb, h2s, _alpha,
-     _x_fix) = ac
+     _x_fix, _zcut) = ac
     if wear_on:
         da = wear * abs(vs_a) * dt
         S[S_WLA] += da * nla

@@ -79,18 +79,28 @@ def wet_coefficients(P):
 
 
 @kernel_jit
-def friction_constants_at(P, mus, muk):
+def mixed_cut(P, mus_dry, muk_dry):
     """
-    Return friction_constants(P) with the apparent coefficients mus and muk instead.
+    Return a Stribeck cut (see _stribeck_cut) that holds for every mix of wet and dry thread.
 
-    The Stribeck cut is formed for them (_stribeck_cut); the lubricant of
-    ageing.py moves the coefficients between the wet and the dry thread.
+    The coefficients of a mix, L wet + (1 - L) dry, move linearly in L, so
+    |drop| / mu_k is monotone in L between its ends and its largest cut is at
+    one of them. A cut above a mix's own only evaluates exp where the term
+    is below half an ulp, so the law's values are the same bits.
     """
-    muv = P[P_MUV]
-    drop = mus - muk
-    vst = P[P_VST]
     dst = P[P_DST]
-    return (muk, muv, drop, vst, 1.0 / vst, dst, _stribeck_cut(muk, drop, dst))
+    return max(P[P_ZCUT], _stribeck_cut(muk_dry, mus_dry - muk_dry, dst))
+
+
+@kernel_jit
+def friction_constants_at(fc, mus, muk, zcut):
+    """
+    Return the law's constants fc with the apparent coefficients mus, muk and the cut zcut.
+
+    The lubricant of ageing.py moves the coefficients between the wet and
+    the dry thread; zcut is mixed_cut's.
+    """
+    return (muk, fc[1], mus - muk, fc[3], fc[4], fc[5], zcut)
 
 
 @kernel_jit

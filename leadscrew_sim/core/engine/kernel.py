@@ -153,7 +153,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     wr = flank_gaps(S, bc[3])
     k_tie = 0.5 * P[P_K] if (ac[1] and two_nuts) else 0.0
     fc0 = lc[2]
-    lc = _with_friction(lc, thread_constants(P, S, fc0))
+    lc = _with_friction(lc, thread_constants(P, S, fc0, ac))
     grow = growth_factor(S, ac)
     grow_on = grow != 0.0
     x_fix = ac[11]
@@ -380,10 +380,13 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             heat = ageing_step(S, ac, flo_a / cl, fup_a / cl, flo_b / cl, fup_b / cl, vs_a,
                                vs_b if two_nuts else 0.0,
                                abs(ff_a * vs_a) + abs(ff_b * vs_b) + abs(t_br * dq), dt)
-            wr = flank_gaps(S, bc[3])
-            lc = _with_friction(lc, thread_constants(P, S, fc0))
-            grow = growth_factor(S, ac)
-            grow_on = grow != 0.0
+            if ac[1]:
+                wr = flank_gaps(S, bc[3])
+            if ac[2]:
+                lc = _with_friction(lc, thread_constants(P, S, fc0, ac))
+            if ac[3]:
+                grow = growth_factor(S, ac)
+                grow_on = grow != 0.0
             ageing_outputs(P, S, out, heat, grow, xa, lc[2])
         elif grow_on:
             out[O_GROW] = grow * (xa - x_fix)
@@ -437,7 +440,7 @@ def step_held(P, S, out, f_in, dt, nsub, wk, iwk):
 def report_ageing(P, S, out, dt):
     """Write the ageing outputs O_WLA .. O_GROW of the state S (no step: heat flow 0)."""
     ac = ageing_constants(P, dt)
-    fc = thread_constants(P, S, friction_constants(P))
+    fc = thread_constants(P, S, friction_constants(P), ac)
     ageing_outputs(P, S, out, 0.0, growth_factor(S, ac), S[S_XA], fc)
 
 
