@@ -25,6 +25,8 @@ profile timing and work on any recording of the profiles of
   over the power the load gives, is <= 0 (the closed form
   (tan(lambda) - mu') / (tan(lambda) (1 + mu' tan(lambda))) is negative
   then, too).
+- :func:`thermal_drift`: ISO 230-3 warm-up drift: where the nut stands at
+  each measurement stop against its target, over time.
 - :func:`reversal_error`: ISO 230-2 bidirectional figures: at each target
   the mean positioning deviation approaching from below and from above, the
   reversal B_i = mean up - mean down, its mean and its largest magnitude.
@@ -291,6 +293,44 @@ def reversal_error(t, command, nut_position, window=0.2, min_dwell=0.1):
     b = tuple(u - d for u, d in zip(up, down))
     return ReversalFigures(targets, up, down, b, float(np.mean(b)), float(np.max(np.abs(b))),
                            tuple((len(r[1][1]), len(r[1][-1])) for r in rows))
+
+
+def thermal_drift(t, command, position, window=0.2, min_dwell=0.1):
+    """
+    Return the drift at the measurement stops of a warm-up run (ISO 230-3): a list of rows.
+
+    A stop is a run of one position command lasting at least ``min_dwell``
+    [s]; its reading is the mean of ``position`` (where the nut stands, e.g.
+    the true position in the frame, the nut position plus the screw's
+    thermal growth) over its last ``window`` s (at most half the stop). Each
+    row is (end time [s], target [m], drift [m]: the reading less the
+    target, ``index`` of the stop's last sample).
+
+    Parameters
+    ----------
+    t : array_like of float
+        Sample times [s].
+    command : array_like of float
+        Nut position command in force at each sample [m].
+    position : array_like of float
+        Where the nut stands at each sample [m].
+    window : float
+        Reading window at the end of each stop [s].
+    min_dwell : float
+        Shortest run of one command that counts as a stop [s].
+
+    """
+    t, c = np.asarray(t, dtype=float), np.asarray(command, dtype=float)
+    x = np.asarray(position, dtype=float)
+    rows = []
+    for a, b in _runs(c):
+        if not math.isfinite(c[a]) or t[b - 1] - t[a] < min_dwell:
+            continue
+        w = min(window, 0.5 * (t[b - 1] - t[a]))
+        sel = t[a:b] >= t[b - 1] - w
+        rows.append((float(t[b - 1]), float(c[a]), float(np.mean(x[a:b][sel])) - float(c[a]),
+                     b - 1))
+    return rows
 
 
 def derived_figures(kind, run, load=None, threshold=1e-6, settle=0.3):

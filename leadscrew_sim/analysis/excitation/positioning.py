@@ -1,12 +1,15 @@
 """
-The position profiles: ``reversals`` and ``iso230``, nut position targets [m] (no ROS).
+The position profiles: ``reversals``, ``iso230`` and ``warmup``, nut position targets [m] (no ROS).
 
 - ``reversals``: small back-and-forth moves with dwells, so the backlash shows;
 - ``iso230``: bidirectional positioning in the style of ISO 230-2, linear
   test cycle: targets spread over a travel, each approached from below and
-  from above with an overshoot, a dwell at each target, several cycles.
+  from above with an overshoot, a dwell at each target, several cycles;
+- ``warmup``: the thermal drift test of ISO 230-3: back-and-forth moves over
+  a stroke that heat the screw, with measurement stops at both ends of it at
+  regular intervals.
 
-Both command ``position_command`` (nut position along +x).
+All command ``position_command`` (nut position along +x).
 """
 import math
 
@@ -179,4 +182,96 @@ class Iso230(Profile):
             b.move(pos[0] - o['overshoot'], v, 'overshoot', -1)
         b.move(params.initial_position, v, 'back')
         b.hold(min(o['dwell'], 0.5), 'end')
+        return b.out
+
+
+class Warmup(Profile):
+    """
+    The warm-up drift test of ISO 230-3: moves that heat the screw, with measurement stops.
+
+    The nut runs back and forth over ``stroke`` around ``center`` at
+    ``speed`` for ``interval`` seconds, then stops at the lower and at the
+    upper end of the stroke for ``dwell`` each (segments ``stop K low`` and
+    ``stop K high``), each approached from below so the backlash does not
+    enter; ``stops`` times, after a first stop pair before any heating. The
+    drift is where the nut stands at a stop against where it was told to:
+    ``leadscrew_sim plot`` shows it against time beside the screw's
+    temperature. A run of ``warmup`` heats the screw only with
+    ``screw_heat_capacity`` > 0 (and ``ageing_speedup`` turns hours into
+    minutes).
+    """
+
+    name = 'warmup'
+    kind = 'position'
+    summary = 'ISO 230-3 warm-up: back-and-forth moves with measurement stops (thermal drift)'
+    OPTIONS = {
+        'center': ('m', 'middle of the stroke', -100.0, 100.0, False),
+        'stroke': ('m', 'length of the back-and-forth moves', 1e-6, 200.0, False),
+        'speed': ('m/s', 'speed of the position target during a move', 1e-9, 1e3, False),
+        'interval': ('s', 'time of back-and-forth moves between two stop pairs', 1e-3, 1e6,
+                     False),
+        'stops': ('-', 'stop pairs after the first', 1, 10000, True),
+        'dwell': ('s', 'time at each stop', 1e-3, 3600.0, False),
+    }
+
+    def defaults(self, params, given):
+        """
+        Return the defaults: half the stroke, 10 stop pairs 10 s apart.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        given : dict
+            The options the user gave, by name (SI units).
+
+        """
+        lo, hi = stroke_room(params)
+        return dict(center=0.5 * (lo + hi), stroke=0.5 * (hi - lo),
+                    speed=min(0.05, 0.5 * nut_speed_limit(params)), interval=10.0, stops=10,
+                    dwell=1.0)
+
+    def stop_positions(self):
+        """Return the (low, high) measurement positions [m]."""
+        o = self.options
+        return o['center'] - 0.5 * o['stroke'], o['center'] + 0.5 * o['stroke']
+
+    def build(self, params, o):
+        """
+        Return the moves and the measurement stops.
+
+        Parameters
+        ----------
+        params : ScrewParams
+            The axis.
+        o : dict
+            Every option of the profile, by name (SI units), defaults filled in.
+
+        """
+        check_speed(self, params, o['speed'])
+        lo, hi = stroke_room(params)
+        low, high = o['center'] - 0.5 * o['stroke'], o['center'] + 0.5 * o['stroke']
+        if not (lo <= low - o['stroke'] * 0.05 and high <= hi):
+            self.fail('stroke', f'around centre {o["center"]:g} m leaves [{lo:g}, {hi:g}] m '
+                      f'(the stroke less {STROKE_MARGIN:.0%} margins, and a 5 % run-up)')
+        v = o['speed']
+        run_up = low - 0.05 * o['stroke']
+        b = Builder(params.initial_position)
+        b.move(run_up, v, 'to start')
+
+        def stop_pair(k):
+            b.move(low, v, f'to stop {k} low', 1)
+            b.hold(o['dwell'], f'stop {k} low', 1)
+            b.move(high, v, f'to stop {k} high', 1)
+            b.hold(o['dwell'], f'stop {k} high', 1)
+
+        stop_pair(0)
+        for k in range(1, o['stops'] + 1):
+            end = b.t + o['interval']
+            b.move(run_up, v, f'warm-up {k}', -1)     # from the high stop, down
+            while b.t < end:
+                b.move(high, v, f'warm-up {k}', 1)
+                b.move(run_up, v, f'warm-up {k}', -1)
+            stop_pair(k)                              # from below, as the first pair
+        b.move(params.initial_position, v, 'back')
         return b.out
