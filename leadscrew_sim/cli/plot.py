@@ -285,7 +285,10 @@ def _drift_panel(ax, a, p):
     ax.set_xlabel('time [s]')
     ax.set_ylabel('drift, growth [um]')
     ax2 = ax.twinx()
-    ax2.plot(t, a['screw_temperature'], 'k--', lw=0.8, label='screw temperature [degC]')
+    temp = a['screw_temperature']
+    ax2.plot(t, temp, 'k--', lw=0.8, label='screw temperature [degC]')
+    lo, span = float(temp.min()), max(float(np.ptp(temp)), 1e-3)
+    ax2.set_ylim(lo - 0.05 * span, lo + 1.6 * span)   # above the drift, not across it
     ax2.set_ylabel('screw temperature [degC]')
     lines = ax.get_lines() + ax2.get_lines()
     ax.legend(lines, [ln.get_label() for ln in lines], fontsize=7, loc='best')

@@ -68,7 +68,7 @@ EMBEDDED = {
     'leadscrew_sim/msg/AgeingState': (
         '# The ageing of the axis at one tick (leadscrew_sim; SI units, temperature in degC).\n'
         'std_msgs/Header header\n'
-        'float64 wear_leading  # wear depth of the leading flanks, summed over the nut bodies [m]\n'
+        'float64 wear_leading  # leading flanks\' wear depth, summed over the nut bodies [m]\n'
         'float64 wear_trailing  # the same of the trailing flanks [m]\n'
         'float64 backlash  # effective backlash: the set one opened by the wear [m]\n'
         'float64 preload  # anti-backlash preload the worn flanks leave [N]; 0 single nut\n'

@@ -32,3 +32,17 @@ def test_the_code_blocks_of_doc_python_run(tmp_path):
         r.stdout
     png = Path(tmp_path / 'twins.png')
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_the_code_block_of_doc_ageing_runs(tmp_path):
+    """doc/ageing.md's example wears the axis (backlash above the set 100 um) and carries on."""
+    text = (REPO / 'doc' / 'ageing.md').read_text()
+    blocks = re.findall(r'```python\n(.*?)```', text, re.S)
+    assert len(blocks) == 1, len(blocks)
+    r = subprocess.run([sys.executable, '-c', blocks[0]], capture_output=True, text=True,
+                       timeout=600, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    m = re.search(r'backlash ([\d.]+) um', r.stdout)
+    assert m and float(m[1]) > 100.0, r.stdout
+    assert 'carried on: True' in r.stdout
+    assert (tmp_path / 'second.mcap').stat().st_size > 0

@@ -150,8 +150,7 @@ def initial_seating(p, v, wear=(0.0, 0.0)):
 
     The nut rests at ``initial_position`` on the flank its static load presses
     (doc/model.md section 12, initial state); the screw angle follows from the flank
-    penetration of that load. ``wear``: the wear depths of nut A's lower and
-    upper flank [m], by which a single nut's flanks have receded (a split
+    penetration of that load, from flanks receded by their wear (a split
     nut's halves settle on their worn flanks in the first steps).
 
     Parameters
@@ -160,6 +159,8 @@ def initial_seating(p, v, wear=(0.0, 0.0)):
         Validated physical parameters.
     v : numpy.ndarray
         The parameter vector of ``p`` (P_RT and P_GS used).
+    wear : tuple of float
+        Wear depths of nut A's lower and upper flank [m].
 
     """
     rt = v[L.P_RT]
