@@ -82,6 +82,11 @@ class SimulateResult:
         Ticks run [-].
     events : list
         The run's events (faults, protections) as the recording holds them.
+    ageing : dict
+        The ageing of each tick (``sim/ageing``): wear_leading, wear_trailing
+        [m], backlash [m], preload [N], lubricant [-], mu_k, mu_s [-],
+        screw_temperature [degC], heat_flow [W], thermal_growth [m]; arrays
+        as long as ``time``.
 
     """
 
@@ -91,6 +96,7 @@ class SimulateResult:
     rate: float
     steps: int
     events: list
+    ageing: dict = dataclasses.field(default_factory=dict)
 
 
 def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=None,
@@ -188,7 +194,7 @@ def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=N
         return SimulateResult(time=time, nut_position=x,
                               path=None if tmp is not None else str(done.path),
                               rate=float(done.rate), steps=int(done.steps),
-                              events=list(done.events or []))
+                              events=list(done.events or []), ageing=_ageing(path))
     finally:
         if tmp is not None:
             tmp.cleanup()
@@ -204,6 +210,16 @@ def _nut_positions(path):
     x = np.array([np.frombuffer(m, dtype='<f8', count=1, offset=4)[0] for m in data])
     t = (np.asarray(arrays.log_times, dtype=np.int64) - int(arrays.log_times[0])) / 1e9
     return t, x
+
+
+def _ageing(path):
+    """Return {field: array} of the ``sim/ageing`` messages of a run file (its AgeingState)."""
+    from ..io.messages import AGEING_VALUES, decode_ageing
+    arrays = (_open(path).topic_arrays(['/sim/ageing']) or {}).get('/sim/ageing')
+    if arrays is None or not len(arrays.log_times):
+        return {name: np.zeros(0) for name in AGEING_VALUES}
+    rows = [decode_ageing(m)[1] for m in arrays.messages()]
+    return {name: np.array([r[name] for r in rows]) for name in AGEING_VALUES}
 
 
 # ----------------------------------------------------------------------------- recordings

@@ -44,5 +44,5 @@ def test_the_code_block_of_doc_ageing_runs(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     m = re.search(r'backlash ([\d.]+) um', r.stdout)
     assert m and float(m[1]) > 100.0, r.stdout
-    assert 'carried on: True' in r.stdout
+    assert 'carried on: True' in r.stdout and 'starts worn: True' in r.stdout
     assert (tmp_path / 'second.mcap').stat().st_size > 0

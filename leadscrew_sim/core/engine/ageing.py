@@ -34,8 +34,9 @@ from ._jit import kernel_jit
 from .friction import friction_constants_at, mixed_cut, wet_coefficients
 from .layout import (
     O_BLASH, O_GROW, O_HEAT, O_LUB, O_MUK, O_MUS, O_PRELOAD, O_TEMP, O_WLA, O_WLB, O_WUA,
-    O_WUB, P_ALPHA, P_AB, P_B, P_FP, P_H2S, P_HCAP, P_HLOSS, P_ICF, P_ILIFE, P_KP, P_MUKD,
-    P_MUSD, P_TAMB, P_WEAR, P_XFIX, S_LUB, S_TEMP, S_WLA, S_WLB, S_WUA, S_WUB,
+    O_WUB, P_ALPHA, P_AB, P_B, P_FP, P_H2S, P_HCAP, P_HLOSS, P_ILIFE, P_KP, P_MUKD, P_MUKDR,
+    P_MUKW, P_MUSD, P_MUSDR, P_MUSW, P_TAMB, P_WEAR, P_XFIX, S_LUB, S_TEMP, S_WLA, S_WLB,
+    S_WUA, S_WUB,
 )
 
 
@@ -53,7 +54,10 @@ def pack_ageing(p, v):
     v[P_H2S] = p.heat_to_screw
     v[P_ALPHA] = p.thermal_expansion
     v[P_XFIX] = p.fixed_bearing_x
-    v[P_ICF] = 1.0 / tf
+    v[P_MUSW] = p.mu_s
+    v[P_MUKW] = p.mu_k
+    v[P_MUSDR] = p.mu_s_dry
+    v[P_MUKDR] = p.mu_k_dry
 
 
 @kernel_jit
@@ -150,13 +154,13 @@ def ageing_step(S, ac, nla, nua, nlb, nub, vs_a, vs_b, p_fric, dt):
 
 
 @kernel_jit
-def ageing_outputs(P, S, out, heat, grow, xa, fc):
+def ageing_outputs(P, S, out, heat, grow, xa):
     """
     Write the ageing outputs O_WLA .. O_GROW of the state S into out.
 
     heat: the step's heat flow into the screw [W]; grow: alpha (T - T_amb);
-    xa: nut A's position [m]; fc: the friction law's constants in force
-    (thread_constants), whose coefficients are reported as mu = mu' cos(psi_n).
+    xa: nut A's position [m]. The coefficients are reported as set (not the
+    apparent ones of the law), mixed as the law mixes them.
     """
     wla, wua, wlb, wub = S[S_WLA], S[S_WUA], S[S_WLB], S[S_WUB]
     out[O_WLA] = wla
@@ -170,10 +174,10 @@ def ageing_outputs(P, S, out, heat, grow, xa, fc):
     else:
         out[O_PRELOAD] = 0.0
         out[O_BLASH] = P[P_B] + wla + wua
-    icf = P[P_ICF]
-    out[O_LUB] = S[S_LUB]
-    out[O_MUK] = fc[0] * icf
-    out[O_MUS] = (fc[0] + fc[2]) * icf
+    lub = S[S_LUB]
+    out[O_LUB] = lub
+    out[O_MUK] = P[P_MUKW] * lub + P[P_MUKDR] * (1.0 - lub)
+    out[O_MUS] = P[P_MUSW] * lub + P[P_MUSDR] * (1.0 - lub)
     out[O_TEMP] = S[S_TEMP]
     out[O_HEAT] = heat
     out[O_GROW] = grow * (xa - P[P_XFIX])

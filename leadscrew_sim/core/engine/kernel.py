@@ -34,7 +34,6 @@ import numpy as np
 from ._jit import kernel_jit, refresh_cache
 from .drive import (FAULT_INJECTED, FAULT_NONE, FAULT_OVERSPEED, MODE_POSITION, MODE_TORQUE,
                     update_period)
-from .friction import friction_constants
 from .sensors import sample
 from .ageing import (ageing_constants, ageing_outputs, ageing_step, flank_gaps, growth_factor,
                      thread_constants)
@@ -157,7 +156,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     grow = growth_factor(S, ac)
     grow_on = grow != 0.0
     x_fix = ac[11]
-    ageing_outputs(P, S, out, 0.0, grow, S[S_XA], lc[2])
+    ageing_outputs(P, S, out, 0.0, grow, S[S_XA])
     mu_r_col = P[P_MUC] * P[P_RCOL]
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     t_scale = P[P_TSCALE]
@@ -387,7 +386,7 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
             if ac[3]:
                 grow = growth_factor(S, ac)
                 grow_on = grow != 0.0
-            ageing_outputs(P, S, out, heat, grow, xa, lc[2])
+            ageing_outputs(P, S, out, heat, grow, xa)
         elif grow_on:
             out[O_GROW] = grow * (xa - x_fix)
         for j in range(REC_STATE):
@@ -440,8 +439,7 @@ def step_held(P, S, out, f_in, dt, nsub, wk, iwk):
 def report_ageing(P, S, out, dt):
     """Write the ageing outputs O_WLA .. O_GROW of the state S (no step: heat flow 0)."""
     ac = ageing_constants(P, dt)
-    fc = thread_constants(P, S, friction_constants(P), ac)
-    ageing_outputs(P, S, out, 0.0, growth_factor(S, ac), S[S_XA], fc)
+    ageing_outputs(P, S, out, 0.0, growth_factor(S, ac), S[S_XA])
 
 
 @kernel_jit

@@ -127,8 +127,11 @@ P_TAMB = P_DRATE + 57   # ambient_temperature [degC]
 P_H2S = P_DRATE + 58    # heat_to_screw: share of the thread and bearing friction power [-]
 P_ALPHA = P_DRATE + 59  # thermal_expansion of the screw [1/K]
 P_XFIX = P_DRATE + 60   # fixed_bearing_x: where the screw does not move as it grows [m]
-P_ICF = P_DRATE + 61    # cos(psi_n): an apparent coefficient mu' times it is mu [-]
-NP = P_DRATE + 62       # length of P
+P_MUSW = P_DRATE + 61   # mu_s of the lubricated thread, as set (reported) [-]
+P_MUKW = P_DRATE + 62   # mu_k of the lubricated thread, as set (reported) [-]
+P_MUSDR = P_DRATE + 63  # mu_s_dry as set (reported) [-]
+P_MUKDR = P_DRATE + 64  # mu_k_dry as set (reported) [-]
+NP = P_DRATE + 65       # length of P
 
 # State vector S (float64[N_STATE]) --------------------------------------------
 S_QM = 0        # motor angle [rad]
