@@ -167,7 +167,8 @@ def test_unknown_profile_and_immutability():
 
 def test_registry_kinds_and_topics_match_the_topic_table():
     kinds = {'breakaway': 'torque', 'sweep': 'velocity', 'reversals': 'position',
-             'iso230': 'position', 'chirp': 'velocity', 'multisine': 'velocity'}
+             'iso230': 'position', 'warmup': 'position', 'chirp': 'velocity',
+             'multisine': 'velocity'}
     assert {n: c.kind for n, c in E.PROFILES.items()} == kinds
     p = load_preset('tr12x3')
     for name in E.PROFILES:
