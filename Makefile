@@ -39,7 +39,7 @@ $(LINKS): | $(STAMP)
 	ln -sfn ../lib/leadscrew_sim/$(notdir $@) $@
 
 run: setup
-	$(ENV) $(VPY) -m leadscrew_sim.ros.demo --preset $(PRESET) --duration $(DURATION)
+	$(ENV) $(VPY) -m leadscrew_sim.cli.demo --preset $(PRESET) --duration $(DURATION)
 
 test: setup
 	$(ENV) $(VPY) -m pytest -p no:cacheprovider test

@@ -1,8 +1,8 @@
 """
 Demo: start the node and drive the nut up and down with torque pulses.
 
-``python -m leadscrew_sim.ros.demo --preset tr12x3 --duration 0`` (``make run``)
-starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
+``python -m leadscrew_sim.cli.demo --preset tr12x3 --duration 0`` (``make run``;
+the flags are parsed there, :func:`run` takes them as keywords) starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
 pattern on ``torque_command`` and prints, every 0.5 s, the time, the
 commanded torque, the nut position [mm] and the thread contact state.
 Between pulses it commands the torque in the middle of the holding band, so
@@ -11,9 +11,8 @@ lowering threshold by 15 % for 0.1 s and the nut steps by a few mm toward a
 target of +20 mm or -20 mm, then turns around. A stepper axis (``drive_type``
 stepper, e.g. ``--preset nema17_tr8x8``) takes no torque: the demo sends it
 ``position_command`` targets STEP_MM further every pulse period instead.
-Ctrl-C (or --duration) stops the demo and the node.
+Ctrl-C (or the duration) stops the demo and the node.
 """
-import argparse
 import math
 import os
 import signal
@@ -80,19 +79,13 @@ def step_target(t, state):
     return state['x_cmd']
 
 
-def _parse(argv):
-    """Return (args, preset name, ScrewParams) or an exit code for a bad preset."""
-    from .node import DEFAULT_PRESET
+def _load(preset):
+    """Return (preset name, ScrewParams) or an exit code for a bad preset."""
+    from .parameters import DEFAULT_PRESET
     from ..core import load_preset, ParameterError
-    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    ap.add_argument('--preset', default=DEFAULT_PRESET,
-                    help='preset name (config/<name>.yaml); "default" = ' + DEFAULT_PRESET)
-    ap.add_argument('--duration', type=float, default=0.0,
-                    help='seconds to run; 0 = until Ctrl-C')
-    args = ap.parse_args(argv)
-    preset = DEFAULT_PRESET if args.preset == 'default' else args.preset
+    preset = DEFAULT_PRESET if preset in (None, 'default') else preset
     try:
-        return args, preset, load_preset(preset)
+        return preset, load_preset(preset)
     except ParameterError as exc:
         print(f'demo: {exc}', file=sys.stderr)
         return 2
@@ -124,7 +117,7 @@ def _subscribe(node, latest):
     node.create_subscription(DiagnosticArray, 'diagnostics', on_diag, 10)
 
 
-def _drive(args, params, hold, half, pub, executor, latest, child, stop):
+def _drive(duration, params, hold, half, pub, executor, latest, child, stop):
     """Publish the pulse pattern and print the state until stopped; return the exit code."""
     from std_msgs.msg import Float64
     print('demo: waiting for the node...', flush=True)
@@ -138,7 +131,7 @@ def _drive(args, params, hold, half, pub, executor, latest, child, stop):
     next_print = PULSE_PERIOD / 2.0          # print between pulses
     while not stop['now']:
         t = time.monotonic() - t0
-        if args.duration and t >= args.duration:
+        if duration and t >= duration:
             break
         if params.drive_type == 'stepper':
             state.setdefault('x_cmd', latest['x'])
@@ -160,12 +153,22 @@ def _drive(args, params, hold, half, pub, executor, latest, child, stop):
     return 0
 
 
-def main(argv=None):
-    """Run the demo; return the exit code."""
-    parsed = _parse(argv)
-    if isinstance(parsed, int):
-        return parsed
-    args, preset, params = parsed
+def run(preset=None, duration=0.0):
+    """
+    Run the demo; return the exit code.
+
+    Parameters
+    ----------
+    preset : str, optional
+        Preset name or YAML path (None or 'default': the node's default preset).
+    duration : float
+        Seconds to run [s]; 0 until Ctrl-C.
+
+    """
+    loaded = _load(preset)
+    if isinstance(loaded, int):
+        return loaded
+    preset, params = loaded
     _isolate()
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -202,7 +205,7 @@ def main(argv=None):
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        code = _drive(args, params, hold, half, pub, executor, latest, child, stop)
+        code = _drive(duration, params, hold, half, pub, executor, latest, child, stop)
     finally:
         if child.poll() is None:
             child.send_signal(signal.SIGINT)
@@ -218,6 +221,3 @@ def main(argv=None):
     print(f'demo: stopped (node exit code {child.returncode})', flush=True)
     return code
 
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -1,5 +1,5 @@
 """
-The package's structure: no import circle, and one root of every error it raises.
+The package's structure: no import circle, no flags below cli/, one root of every error.
 
 Oracles: Python's own parser (``ast``) for the imports, every one of them,
 those inside functions included (a lazy import still ties two modules
@@ -97,6 +97,20 @@ def test_the_package_has_no_import_circle():
     """No module imports, however lazily, a module that imports it back (directly or not)."""
     found = circles(import_graph(modules()))
     assert not found, f'import circles: {found}'
+
+
+def test_no_module_below_cli_parses_flags():
+    """argparse is the command line's: no module outside cli/ imports it, at any depth."""
+    found = []
+    for name, path in modules().items():
+        if name.startswith('leadscrew_sim.cli'):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) else [])
+            if any(n and n.split('.')[0] == 'argparse' for n in names):
+                found.append(name)
+    assert not found, f'argparse imported below cli/: {sorted(set(found))}'
 
 
 def test_every_error_derives_from_leadscrew_error():
