@@ -30,9 +30,9 @@ import numpy as np
 from .foreign.mapping import Mapping
 from .options import open_recording as _open, RunError
 
-__all__ = ['CommissionResult', 'IdentifyResult', 'Mapping', 'Options', 'Recording',
-           'SimulateResult', 'commission', 'identify', 'identify_options', 'open_recording',
-           'simulate']
+__all__ = ['CommissionResult', 'ExciteResult', 'IdentifyResult', 'Mapping', 'Options',
+           'Recording', 'ResimResult', 'SimulateResult', 'commission', 'excite', 'identify',
+           'identify_options', 'open_recording', 'resim', 'simulate']
 
 
 class Options:
@@ -427,3 +427,159 @@ def commission(recording, output, *, segments=None, preset=None, params=None, se
     fit = held.get('fit')
     return CommissionResult(report=report, fit=None if fit is None else _identify_result(fit),
                             directory=str(Path(output)))
+
+
+# ---------------------------------------------------------------------------------- resim
+@dataclasses.dataclass(frozen=True)
+class ResimResult:
+    """
+    A recording re-simulated and compared, as ``leadscrew_sim resim`` prints it.
+
+    Attributes
+    ----------
+    path : str or None
+        The MCAP file written (None for a foreign recording: its twin is not written).
+    rows : list of dict
+        One per compared field: topic, field, max_diff, rms_diff (in the
+        field's unit) and n (values compared).
+    bit_identical : bool
+        Every compared value has the recorded bits.
+    ticks : int
+        Recorded ticks compared [-].
+    events : list
+        The run's events (faults, protections).
+    comparison : object
+        For a foreign recording, the twin's comparison (its report lines
+        come from :func:`leadscrew_sim.offline.foreign.twin.report_lines`); else None.
+
+    """
+
+    path: object
+    rows: list
+    bit_identical: bool
+    ticks: int
+    events: list
+    comparison: object = None
+
+
+def resim(recording, *, set=None, output=None, compression='lz4', preset=None, params=None):
+    """
+    Re-run a recording's commands through the model; compare the states it recorded.
+
+    Parameters
+    ----------
+    recording : Recording or str
+        An MCAP file or a rosbag2 directory (:func:`open_recording`). A
+        leadscrew_sim recording re-runs with its own parameters; a foreign
+        one, or one given ``preset``/``params`` or a mapping, is compared with
+        its twin.
+    set : dict, optional
+        Physics parameters to override {name: value}, each in its unit.
+    output : str, optional
+        The MCAP file to write (default <stem>.resim.mcap beside the recording).
+    compression : str
+        lz4, zstd or none.
+    preset : str, optional
+        The twin's preset (a foreign recording).
+    params : str, optional
+        The twin's ROS 2 parameter file (a foreign recording).
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        A bad option, parameter or recording (named, with its value).
+
+    """
+    from .replay.run import resim as run_resim, TwinRun
+    rec = _recording(recording)
+    opts = Options(file=rec.path, set=_sets(set), output=output, compression=compression,
+                   quiet=True, preset=preset, params=params, plot=None,
+                   **_mapping_fields(rec.mapping))
+    done = run_resim(opts)
+    if isinstance(done, TwinRun):
+        return ResimResult(path=None, rows=[], bit_identical=False, ticks=0, events=[],
+                           comparison=done.comparison)
+    rows = [dict(topic=t, field=f, max_diff=float(mx), rms_diff=float(rms), n=int(n))
+            for t, f, mx, rms, n in done.rows]
+    identical = done.ticks > 0 and not done.bit_differences and all(
+        r['max_diff'] == 0.0 for r in rows if r['n'])
+    return ResimResult(path=str(done.path), rows=rows, bit_identical=identical,
+                       ticks=int(done.ticks), events=list(done.events or []))
+
+
+# --------------------------------------------------------------------------------- excite
+@dataclasses.dataclass(frozen=True)
+class ExciteResult:
+    """
+    An excitation profile as arrays: what ``leadscrew_sim excite`` would publish.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        Time of each command from the start [s], at the command rate.
+    values : numpy.ndarray
+        The command at each time, in ``unit``.
+    topic : str
+        The command topic (torque_command, velocity_command or position_command;
+        a chained profile's first).
+    unit : str
+        The unit of the values (N m, m/s or m).
+    segments : list of tuple
+        (start [s], end [s], label) of each part of the profile.
+    options : dict
+        Every option of the profile, defaults filled in (SI units).
+    duration : float
+        The profile's duration [s].
+
+    """
+
+    time: np.ndarray
+    values: np.ndarray
+    topic: str
+    unit: str
+    segments: list
+    options: dict
+    duration: float
+
+
+def excite(name, preset=None, *, params=None, set=None, opt=None, command_rate=None):
+    """
+    Build an excitation profile for an axis; return its commands as arrays.
+
+    Parameters
+    ----------
+    name : str
+        The profile: breakaway, sweep, reversals, iso230, warmup, chirp,
+        multisine or commission.
+    preset : str, optional
+        Preset name or YAML path of the axis (default tr12x3).
+    params : str, optional
+        A ROS 2 parameter file of the axis.
+    set : dict, optional
+        Parameters of the axis {name: value}, each in its unit.
+    opt : dict, optional
+        The profile's options {option: value} in SI units.
+    command_rate : float, optional
+        Commands per second [Hz] (default the profile's own, else 100).
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        An unknown profile, a bad option (named, with its value and range).
+
+    """
+    from .options import load_params, parse_options, parse_sets
+    from ..analysis.excitation.profiles import make_profile
+    phys, _run = parse_sets(_sets(set))
+    p, _label, _extra = load_params(Options(preset=preset, params=params), phys)
+    profile = make_profile(name, p, **parse_options(_opt_sets(opt)))
+    rate = command_rate if command_rate is not None else getattr(profile, 'command_rate',
+                                                                 100.0)
+    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and 0.1 <= rate <= 1e4):
+        raise RunError(f'command_rate: {rate!r} Hz is outside the allowed range [0.1, 10000]')
+    n = int(math.ceil(profile.duration * rate - 1e-9)) + 1
+    t = np.arange(n) / rate
+    return ExciteResult(time=t, values=profile.values(t), topic=profile.topic,
+                        unit=profile.unit, options=dict(profile.options),
+                        segments=[(s.t0, s.t1, s.label) for s in profile.segments],
+                        duration=float(profile.duration))

@@ -1,0 +1,53 @@
+"""
+The library's resim and excite calls, in-process.
+
+Oracles: the mcap library's reading of the two files (the re-simulated
+states have the recorded bytes), a changed friction coefficient that must
+move the nut, and for a profile the options it was given: the reversals'
+extremes are centre plus and minus the amplitude, the warm-up's stops hold
+their targets.
+"""
+from mcap.reader import make_reader
+import numpy as np
+import pytest
+
+import leadscrew_sim as ls
+
+
+def _states(path, topic='/axis/joint_states'):
+    with open(path, 'rb') as fh:
+        return [(m.log_time, m.data) for _s, _c, m in make_reader(fh).iter_messages(
+            topics=[topic])]
+
+
+def test_resim_of_a_run_is_bit_identical_and_an_override_is_not(tmp_path):
+    run = ls.simulate('tr12x3', duration=0.5, velocity=0.02, output=str(tmp_path / 'a.mcap'))
+    same = ls.resim(run.path, output=str(tmp_path / 'b.mcap'))
+    assert same.bit_identical and same.ticks == 500
+    assert _states(tmp_path / 'a.mcap') == _states(tmp_path / 'b.mcap')
+    other = ls.resim(ls.open_recording(run.path), set={'mu_k': 0.2},
+                     output=str(tmp_path / 'c.mcap'))
+    assert not other.bit_identical
+    nut = [r for r in other.rows if r['field'] == 'position[nut_joint]'][0]
+    assert nut['max_diff'] > 1e-6 and nut['n'] == 500
+    with pytest.raises(ls.LeadscrewError, match="'mu_k'.*-1"):
+        ls.resim(run.path, set={'mu_k': -1.0}, output=str(tmp_path / 'd.mcap'))
+
+
+def test_excite_returns_the_profile_as_arrays():
+    e = ls.excite('reversals', opt={'center': 0.01, 'amplitude': 0.002, 'cycles': 2},
+                  command_rate=200.0)
+    assert e.topic == 'position_command' and e.unit == 'm'
+    assert np.allclose(np.diff(e.time), 1 / 200.0)
+    moves = e.values[e.time >= e.segments[0][1]]     # after the move from rest to the centre
+    assert moves.max() == pytest.approx(0.012) and moves.min() == pytest.approx(0.008)
+    w = ls.excite('warmup', opt={'stops': 2, 'interval': 5.0, 'stroke': 0.1, 'center': 0.0})
+    stops = [(a, b) for a, b, label in w.segments if label == 'stop 2 high']
+    assert len(stops) == 1
+    a, b = stops[0]
+    held = w.values[(w.time > a + 0.01) & (w.time < b - 0.01)]
+    assert len(held) and np.all(held == pytest.approx(0.05))
+    with pytest.raises(ls.LeadscrewError, match="'stops'.*-1"):
+        ls.excite('warmup', opt={'stops': -1})
+    with pytest.raises(ls.LeadscrewError, match='command_rate'):
+        ls.excite('warmup', command_rate=0.0)
