@@ -31,8 +31,9 @@ from .foreign.mapping import Mapping
 from .options import open_recording as _open, RunError
 
 __all__ = ['CommissionResult', 'ExciteResult', 'IdentifyResult', 'Mapping', 'Options',
-           'Recording', 'ResimResult', 'SimulateResult', 'commission', 'excite', 'identify',
-           'identify_options', 'open_recording', 'resim', 'simulate']
+           'PulloutResult', 'Recording', 'ResimResult', 'SimulateResult', 'StabilityResult',
+           'commission', 'excite', 'freqresp', 'identify', 'identify_options',
+           'open_recording', 'pullout', 'resim', 'simulate', 'stability']
 
 
 class Options:
@@ -583,3 +584,263 @@ def excite(name, preset=None, *, params=None, set=None, opt=None, command_rate=N
                         unit=profile.unit, options=dict(profile.options),
                         segments=[(s.t0, s.t1, s.label) for s in profile.segments],
                         duration=float(profile.duration))
+
+
+# -------------------------------------------------------------------------------- pullout
+@dataclasses.dataclass(frozen=True)
+class PulloutResult:
+    """
+    A stepper axis's pull-out curve, as ``leadscrew_sim pullout`` prints it.
+
+    Attributes
+    ----------
+    step_rate : numpy.ndarray
+        Step rates [full steps/s].
+    speed : numpy.ndarray
+        The motor speed at each [rev/s].
+    pullout_torque : numpy.ndarray
+        The load torque the motor pulls out at [N m].
+
+    """
+
+    step_rate: np.ndarray
+    speed: np.ndarray
+    pullout_torque: np.ndarray
+
+
+def pullout(preset=None, *, params=None, set=None, rates=None, ramp=2.0, output=None,
+            plot=None):
+    """
+    Measure a stepper axis's pull-out torque against step rate; return a :class:`PulloutResult`.
+
+    Parameters
+    ----------
+    preset : str, optional
+        Preset name or YAML path of a stepper axis (e.g. nema17_tr8x8).
+    params : str, optional
+        A ROS 2 parameter file of the axis.
+    set : dict, optional
+        Parameters {name: value}, each in its unit.
+    rates : sequence of float, optional
+        Step rates [full steps/s] (default 0.1, 0.2, ... 1 of max_step_rate).
+    ramp : float
+        Time of each load ramp to 1.2 holding torque [s].
+    output : str, optional
+        A CSV file to write the table to.
+    plot : str, optional
+        A PNG file to write the curve to.
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        A bad option or parameter, or an axis that is not a stepper.
+
+    """
+    from .options import load_params, parse_sets
+    from .pullout import plot_png, pullout_curve, write_csv
+    from ..core.presets import preset_label
+    phys, _run = parse_sets(_sets(set))
+    p, label, _extra = load_params(Options(preset=preset, params=params), phys)
+    if not (isinstance(ramp, (int, float)) and ramp > 0.0 and math.isfinite(ramp)):
+        raise RunError(f'ramp: {ramp!r} s must be > 0')
+    rows = pullout_curve(p, None if rates is None else [float(r) for r in rates], ramp)
+    if output:
+        write_csv(rows, output)
+    if plot:
+        plot_png(rows, p, preset_label(label), plot)
+    return PulloutResult(*(np.array([r[k] for r in rows], dtype=float)
+                           for k in ('step_rate', 'speed', 'pullout_torque')))
+
+
+# ------------------------------------------------------------------------------ stability
+@dataclasses.dataclass(frozen=True)
+class StabilityResult:
+    """
+    The stability of steady sliding over a grid, as ``leadscrew_sim stability`` finds it.
+
+    Attributes
+    ----------
+    rows : list of dict
+        One per case: the grid values, growth_rate [1/s], frequency [Hz],
+        mechanism, verdict, amplitude_large, stick_fraction, period [s], error.
+    names : list of str
+        The grid axes.
+    boundaries : dict
+        Axis name -> where the linear analysis changes verdict along it.
+    bistable : dict
+        Axis name -> (low, high) spans where a small start decays and a large one
+        keeps oscillating.
+    worst : dict or None
+        The least stable case.
+    complete : bool
+        False when the run was interrupted.
+
+    """
+
+    rows: list
+    names: list
+    boundaries: dict
+    bistable: dict
+    worst: object
+    complete: bool
+
+
+def _grid_items(grid):
+    """Return the run library's NAME=START:STOP:N[:log] items of ``grid``."""
+    if grid is None:
+        return []
+    if not isinstance(grid, dict):
+        raise RunError(f'grid: {grid!r} must be a dict {{name: (start, stop, n[, "log"])}}')
+    items = []
+    for name, axis in grid.items():
+        if not isinstance(axis, (tuple, list)) or len(axis) not in (3, 4):
+            raise RunError(f'grid: {name}={axis!r} must be (start, stop, n) or (start, stop, '
+                           "n, 'log')")
+        items.append(f'{name}=' + ':'.join(str(v) for v in axis))
+    return items
+
+
+def stability(preset=None, *, params=None, set=None, speed=None, drive='velocity', grid=None,
+              method='both', duration=2.0, workers=None, scheduler=None, output=None,
+              plot=None):
+    """
+    Map when the axis stick-slips or squeals; return a :class:`StabilityResult`.
+
+    Parameters
+    ----------
+    preset : str, optional
+        Preset name or YAML path (default tr12x3).
+    params : str, optional
+        A ROS 2 parameter file of the axis.
+    set : dict, optional
+        Parameters {name: value}, each in its unit.
+    speed : float, optional
+        Nut speed [m/s], its sign the direction along +x (unless speed is a grid axis).
+    drive : str
+        velocity (the servo velocity loop) or ideal (a prescribed motor angle).
+    grid : dict, optional
+        At most 3 axes {name: (start, stop, n) or (start, stop, n, 'log')}: the
+        speed [m/s] or a numeric model parameter [its unit].
+    method : str
+        linear, nonlinear or both.
+    duration : float
+        Length of each nonlinear run [s].
+    workers : int, optional
+        Local worker processes (default the cores).
+    scheduler : str, optional
+        A Dask scheduler, tcp://HOST:PORT.
+    output : str, optional
+        A CSV file of the table.
+    plot : str, optional
+        A PNG file of the map.
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        A bad option or parameter (named, with its value and range).
+
+    """
+    from .options import load_params, parse_sets
+    from ..analysis.stability import stability_table
+    phys, _run = parse_sets(_sets(set))
+    p, _label, _extra = load_params(Options(preset=preset, params=params), phys)
+    if workers is not None and not (isinstance(workers, int) and workers >= 1):
+        raise RunError(f'workers: {workers!r} must be an integer of at least 1')
+    res = stability_table(p, _grid_items(grid), speed=speed, drive=drive, method=method,
+                          duration=duration, workers=workers, scheduler=scheduler,
+                          csv_path=output, plot_path=plot, progress=False)
+    if len(res['rows']) == 1 and res['rows'][0]['error']:
+        raise RunError(res['rows'][0]['error'])
+    return StabilityResult(rows=list(res['rows']), names=list(res['names']),
+                           boundaries=dict(res['boundaries']),
+                           bistable=dict(res.get('bistable', {})), worst=res['worst'],
+                           complete=bool(res['complete']))
+
+
+# ------------------------------------------------------------------------------- freqresp
+def freqresp(recording=None, *, preset=None, params=None, set=None, input=None, output=None,
+             loop=None, quantity=None, mode=None, speed=0.0, rest='stuck', linear=False,
+             sampling='continuous', method='sine', fmin=None, fmax=None, points=30,
+             amplitude=None, settle=3, periods=5, step_rate=None, workers=None,
+             scheduler=None, segments=8, output_csv=None, plot=None):
+    """
+    Measure or compute the axis's frequency response; return a list of FrequencyResponse.
+
+    From the linearised model (``linear=True``), a simulated measurement
+    (``method``: sine dwell, chirp or multisine), or a ``recording`` with
+    broadband excitation (its mapping from :func:`open_recording`). Each
+    :class:`leadscrew_sim.analysis.freqresp.response.FrequencyResponse` holds
+    ``frequency`` [Hz], the complex ``response`` in the signals' SI units,
+    ``coherence``, ``amplitude`` and, for the linear model, ``poles``.
+
+    Parameters
+    ----------
+    recording : Recording or str, optional
+        A recording to measure (None: the model of ``preset``/``params``).
+    preset, params : str, optional
+        The axis: a preset or a ROS 2 parameter file.
+    set : dict, optional
+        Parameters {name: value}, each in its unit.
+    input : str, optional
+        torque [N m], velocity_command [m/s], position_command [m] or
+        external_force [N] (default velocity_command).
+    output : str, optional
+        motor_angle [rad], motor_velocity [rad/s], nut_position [m],
+        nut_velocity [m/s], thread_force [N], following_error [rad] or
+        motor_torque [N m] (default motor_velocity).
+    loop : str, optional
+        velocity or position: a loop quantity instead of input/output.
+    quantity : str, optional
+        L, S or T with ``loop`` (default L).
+    mode : str, optional
+        The drive mode under an external_force input: torque, velocity, position.
+    speed : float
+        Operating point: nut speed [m/s] (0: at rest on the loaded flank).
+    rest : str
+        The linear model at rest: stuck (held by stiction) or free.
+    linear : bool
+        The linearised model's response.
+    sampling : str
+        With ``linear``: continuous, drive or step.
+    method : str
+        Simulated measurement: sine, chirp or multisine.
+    fmin, fmax : float, optional
+        Frequency range [Hz] (default 1 to 100).
+    points : int
+        Frequencies [-].
+    amplitude : float or sequence of float, optional
+        Test amplitude(s) in the input's SI unit (default from the axis).
+    settle, periods : int
+        Sine dwell: periods discarded and kept.
+    step_rate : float, optional
+        Step rate [Hz] (default 1000; a recording's from its stamps).
+    workers : int, optional
+        Local worker processes.
+    scheduler : str, optional
+        A Dask scheduler, tcp://HOST:PORT.
+    segments : int
+        A recording: Welch segments.
+    output_csv : str, optional
+        A CSV file of frequency, magnitude, phase, coherence, amplitude.
+    plot : str, optional
+        A PNG file of the Bode plot.
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        A bad option or parameter (named, with its value and range).
+
+    """
+    from .freqresp.run import freqresp_run
+    fields = dict(preset=preset, params=params, set=_sets(set), input=input, output=output,
+                  loop=loop, quantity=quantity, mode=mode, speed=speed, rest=rest,
+                  linear=linear, sampling=sampling, method=method, fmin=fmin, fmax=fmax,
+                  points=points, settle=settle, periods=periods, step_rate=step_rate,
+                  workers=workers, scheduler=scheduler, segments=segments,
+                  output_csv=output_csv, plot=plot, quiet=True, file=None,
+                  amplitude=None if amplitude is None else ','.join(
+                      str(float(a)) for a in np.atleast_1d(amplitude)))
+    if recording is not None:
+        rec = _recording(recording)
+        fields.update(_mapping_fields(rec.mapping), file=rec.path)
+    return list(freqresp_run(Options(**fields))['responses'])

@@ -51,3 +51,23 @@ def test_excite_returns_the_profile_as_arrays():
         ls.excite('warmup', opt={'stops': -1})
     with pytest.raises(ls.LeadscrewError, match='command_rate'):
         ls.excite('warmup', command_rate=0.0)
+
+
+def test_freqresp_stability_and_pullout_are_calls():
+    """Each returns its figures; checked against closed forms of the axis."""
+    p = ls.load_preset('tr12x3')
+    # a velocity loop that tracks: at low frequency the motor turns 2 pi / lead per m/s
+    r = ls.freqresp(linear=True, rest='free', fmin=0.1, fmax=50.0, points=5)[0]
+    assert r.input == 'velocity_command' and r.output == 'motor_velocity'
+    assert abs(r.response[0]) == pytest.approx(2 * np.pi / p.lead, rel=1e-3)
+    # sliding steadily with a velocity-independent friction (mu_s = mu_k, no viscous term)
+    # the linear analysis finds no growth: every mode decays
+    s = ls.stability(set={'mu_s': p.mu_k}, speed=0.01, method='linear')
+    assert s.complete and len(s.rows) == 1 and s.rows[0]['growth_rate'] < 0.0
+    # a stepper pulls out below its holding torque, less at the higher rate
+    q = ls.load_preset('nema17_tr8x8')
+    out = ls.pullout('nema17_tr8x8', rates=[200.0, 1000.0], ramp=1.0)
+    assert list(out.step_rate) == [200.0, 1000.0]
+    assert 0.0 < out.pullout_torque[1] < out.pullout_torque[0] < q.holding_torque
+    with pytest.raises(ls.LeadscrewError, match='grid'):
+        ls.stability(grid={'speed': (0.001, 0.01)})
