@@ -33,7 +33,7 @@ from .options import open_recording as _open, RunError
 __all__ = ['CommissionResult', 'ExciteResult', 'IdentifyResult', 'Mapping', 'Options',
            'PulloutResult', 'Recording', 'ResimResult', 'SimulateResult', 'StabilityResult',
            'commission', 'excite', 'freqresp', 'identify', 'identify_options',
-           'open_recording', 'pullout', 'resim', 'simulate', 'stability']
+           'open_recording', 'pullout', 'recover', 'resim', 'simulate', 'stability']
 
 
 class Options:
@@ -844,3 +844,34 @@ def freqresp(recording=None, *, preset=None, params=None, set=None, input=None, 
         rec = _recording(recording)
         fields.update(_mapping_fields(rec.mapping), file=rec.path)
     return list(freqresp_run(Options(**fields))['responses'])
+
+
+# -------------------------------------------------------------------------------- recover
+def recover(recording, output=None, *, force=False):
+    """
+    Write a complete copy of a recording cut short by a crash; say what it saved and lost.
+
+    Parameters
+    ----------
+    recording : str
+        A cut MCAP file, or a rosbag2 bag directory (merged into one MCAP
+        file); read only, never changed.
+    output : str, optional
+        The copy (default the source with ``.recovered.mcap``).
+    force : bool
+        Overwrite the copy if it exists.
+
+    Returns
+    -------
+    leadscrew_sim.offline.recover.Recovered
+        ``path``, ``topics`` (topic -> messages saved), ``log_times`` [ns],
+        ``whole``, ``problem``, ``lost_bytes``.
+
+    Raises
+    ------
+    leadscrew_sim.LeadscrewError
+        A missing source, a copy that would replace it or exists.
+
+    """
+    from .recover import recover_recording
+    return recover_recording(recording, output, force)

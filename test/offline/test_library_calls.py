@@ -71,3 +71,21 @@ def test_freqresp_stability_and_pullout_are_calls():
     assert 0.0 < out.pullout_torque[1] < out.pullout_torque[0] < q.holding_torque
     with pytest.raises(ls.LeadscrewError, match='grid'):
         ls.stability(grid={'speed': (0.001, 0.01)})
+
+
+def test_recover_copies_a_whole_file_and_says_what_a_cut_one_lost(tmp_path):
+    run = ls.simulate('tr12x3', duration=0.3, velocity=0.02, output=str(tmp_path / 'a.mcap'))
+    whole = ls.recover(run.path, str(tmp_path / 'copy.mcap'))
+    with open(run.path, 'rb') as fh:
+        counts = {}
+        for _s, c, _m in make_reader(fh).iter_messages():
+            counts[c.topic] = counts.get(c.topic, 0) + 1
+    assert whole.whole and whole.topics == counts and whole.lost_bytes == 0
+    data = (tmp_path / 'a.mcap').read_bytes()
+    (tmp_path / 'cut.mcap').write_bytes(data[:len(data) * 2 // 3])
+    cut = ls.recover(str(tmp_path / 'cut.mcap'))
+    assert not cut.whole and cut.lost_bytes > 0 and cut.problem
+    with open(cut.path, 'rb') as fh:                 # the copy is a complete, readable file
+        assert sum(1 for _ in make_reader(fh).iter_messages()) == sum(cut.topics.values())
+    with pytest.raises(ls.LeadscrewError, match='exists'):
+        ls.recover(str(tmp_path / 'cut.mcap'))
