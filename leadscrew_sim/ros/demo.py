@@ -1,8 +1,9 @@
 """
 Demo: start the node and drive the nut up and down with torque pulses.
 
-``python -m leadscrew_sim.cli.demo --preset tr12x3 --duration 0`` (``make run``;
-the flags are parsed there, :func:`run` takes them as keywords) starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
+``python -m leadscrew_sim.cli.demo --preset tr12x3 --duration 0`` (``make
+run``; the flags are parsed there, :func:`run` takes them as keywords)
+starts ``leadscrew_sim_node`` as a child process, publishes a slow pulse
 pattern on ``torque_command`` and prints, every 0.5 s, the time, the
 commanded torque, the nut position [mm] and the thread contact state.
 Between pulses it commands the torque in the middle of the holding band, so
@@ -220,4 +221,3 @@ def run(preset=None, duration=0.0):
             rclpy.shutdown()
     print(f'demo: stopped (node exit code {child.returncode})', flush=True)
     return code
-
