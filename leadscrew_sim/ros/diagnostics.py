@@ -96,6 +96,7 @@ def diagnostic_array(*, name, preset, params, model, clock_mode, sim_time_ns, ta
                ('dropped_commands', str(dropped[0])), ('dropped_states', str(dropped[1])),
                ('far_position_commands', str(far_commands)),
                ('reference_gap_m', f'{gap:.6g}')]
+    values += _ageing_values(m)
     if stepper is not None:
         values += stepper_values(stepper, p)
     if live is not None:
@@ -169,6 +170,16 @@ def live_view_values(live):
     counts its reports of that (at most one every 30 s).
     """
     return [(key, str(live.get(name, 0))) for key, name in LIVE_VIEW_KEYS]
+
+
+def _ageing_values(m):
+    """Return the (key, value) pairs of the axis's ageing (model.md, section 19)."""
+    (w_lead, w_trail, backlash, preload, lub, mu_k, mu_s, temp, _heat,
+     growth) = m.ageing_values()
+    return [('wear_leading_m', f'{w_lead:.6g}'), ('wear_trailing_m', f'{w_trail:.6g}'),
+            ('backlash_m', f'{backlash:.6g}'), ('preload_N', f'{preload:.6g}'),
+            ('lubricant', f'{lub:.6g}'), ('mu_k', f'{mu_k:.6g}'), ('mu_s', f'{mu_s:.6g}'),
+            ('screw_temperature_degC', f'{temp:.4f}'), ('thermal_growth_m', f'{growth:.6g}')]
 
 
 def _values(p, m, o, drive, eff, clock_mode, sim_time_ns, target_rate, command_age, stale,

@@ -12,6 +12,7 @@ left untouched while the node runs from a new axis.
 import signal
 
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
@@ -57,6 +58,7 @@ def test_a_restarted_node_continues_from_the_saved_ageing(tmp_path, ros):
     state_file = tmp_path / 'axis.json'
     live = ros.collect(Float64MultiArray, 'sim/ageing')
     states = ros.collect(JointState, 'axis/joint_states')
+    diags = ros.collect(DiagnosticArray, 'diagnostics')
     first = NodeProcess(_argv(tmp_path, 'first', state_file), tmp_path / 'first.log')
     try:
         wait_states(ros, states, first)
@@ -65,6 +67,17 @@ def test_a_restarted_node_continues_from_the_saved_ageing(tmp_path, ros):
                              lambda: live and live[-1].data[0] > 2e-6, timeout=60)
         assert worn, first.output()
         assert live[-1].layout.dim[0].label == ','.join(AGEING_VALUES)
+
+        def worn_diag():
+            for d in diags[::-1]:
+                kv = {v.key: v.value for v in d.status[0].values}
+                if float(kv.get('wear_leading_m', 0.0)) > 0.0:
+                    return kv
+            return None
+
+        assert ros.spin_until(lambda: worn_diag() is not None, 10), 'no ageing in diagnostics'
+        kv = worn_diag()
+        assert 0.0 < float(kv['lubricant']) < 1.0 and float(kv['backlash_m']) > 1e-4
         first.send(signal.SIGINT)
         assert first.wait(timeout=30) == 0, first.output()
         assert 'does not exist yet' in first.output()
