@@ -52,6 +52,7 @@ def run(args):
     recorded = rec.role_topic('sim/thread_state')
     if recorded:
         _print_recorded(rec)
+    _print_ageing(rec)
     if args.no_resim:
         params, _missing = params_from_record(meta)
         print_events(recorded_events(rec, meta, params))
@@ -187,6 +188,28 @@ def _print_recorded(rec):
             contacts.append(last['contact_a'])
     if last is not None:
         _print_energy('recorded in sim/thread_state', *_shares(sticks, contacts), last)
+
+
+def _print_ageing(rec):
+    """Print how the axis aged over the recording (its sim/ageing), if it did."""
+    topic = rec.role_topic('sim/ageing')
+    first = last = None
+    t_lo = t_hi = None
+    for _t, tp, data in rec.messages:
+        if tp == topic:
+            _stamp, last = M.decode_ageing(data)
+            first = first or last
+            temp = last['screw_temperature']
+            t_lo = temp if t_lo is None else min(t_lo, temp)
+            t_hi = temp if t_hi is None else max(t_hi, temp)
+    if first is None:
+        return
+    print(f'ageing: wear leading {first["wear_leading"] * 1e6:.4g} -> '
+          f'{last["wear_leading"] * 1e6:.4g} um, trailing {first["wear_trailing"] * 1e6:.4g} '
+          f'-> {last["wear_trailing"] * 1e6:.4g} um; backlash {first["backlash"] * 1e6:.4g} -> '
+          f'{last["backlash"] * 1e6:.4g} um; lubricant {first["lubricant"]:.4g} -> '
+          f'{last["lubricant"]:.4g} (mu_k {last["mu_k"]:.4g}); screw {t_lo:.4g} .. '
+          f'{t_hi:.4g} degC, growth at the nut {last["thermal_growth"] * 1e6:.4g} um')
 
 
 def _print_resim(args, rec, energy=True):

@@ -81,6 +81,9 @@ def test_a_worn_axis_carries_on_and_replays_bit_for_bit(tmp_path):
     last = _ageing(first)[-1][1]
     assert float(end[AGEING_KEY + 'wear_leading_a']) == last.wear_leading > 1e-6
     assert _ageing(second)[0][1].wear_leading >= last.wear_leading
+    info = cli_ok('info', first, '--no-resim').stdout
+    m = re.search(r'ageing: wear leading \S+ -> (\S+) um', info)
+    assert m and float(m[1]) == pytest.approx(last.wear_leading * 1e6, rel=1e-3), info
     replay = tmp_path / 'replay.mcap'
     r = cli_ok('resim', second, '-q', '-o', replay)
     assert 'bit-identical' in r.stdout
