@@ -48,6 +48,28 @@ class Options:
         return f'Options({self.__dict__!r})'
 
 
+def _number(name, value, unit, lo=None, hi=None, lo_open=False, optional=True):
+    """
+    Check the numeric option ``name`` where it enters; return it (None passes if optional).
+
+    Raises RunError naming the option, its value [unit] and the allowed range.
+    """
+    if value is None and optional:
+        return None
+    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
+          and math.isfinite(value))
+    if ok and lo is not None:
+        ok = value > lo if lo_open else value >= lo
+    if ok and hi is not None:
+        ok = value <= hi
+    if not ok:
+        if lo is None and hi is None:
+            raise RunError(f"option '{name}': {value!r} {unit} must be a finite number")
+        rng = f'{"(" if lo_open else "["}{lo}, {hi}]'
+        raise RunError(f"option '{name}': {value!r} {unit} is outside the allowed range {rng}")
+    return value
+
+
 def _sets(values):
     """Return ``{name: value}`` as the run library's NAME=VALUE items (None: none)."""
     if values is None:
@@ -176,6 +198,16 @@ def simulate(preset=None, *, params=None, set=None, duration=None, update_rate=N
     """
     from .simulate.run import simulate as run_simulate
     from ..io.run_file import PARAMS_RECORD  # noqa: F401 - the run file's layout is io's
+    _number('duration', duration, 's', 0.0, math.inf, lo_open=True)
+    _number('update_rate', update_rate, 'Hz', 1.0, 1e6)
+    for name, value, unit in (('torque', torque, 'N m'), ('velocity', velocity, 'm/s'),
+                              ('position', position, 'm'), ('amplitude', amplitude, 'N m'),
+                              ('target', target, 'm'), ('force', force, 'N')):
+        _number(name, value, unit)
+    _number('accel', accel, 'm/s^2', 0.0, math.inf, lo_open=True, optional=False)
+    _number('frequency', frequency, 'Hz', 0.0, math.inf, lo_open=True, optional=False)
+    _number('step_time', step_time, 's', 0.0, math.inf, optional=False)
+    _number('speed', speed, 'm/s', 0.0, math.inf, lo_open=True, optional=False)
     tmp = None
     path = output
     if path is None:
@@ -641,8 +673,7 @@ def pullout(preset=None, *, params=None, set=None, rates=None, ramp=2.0, output=
     from ..core.presets import preset_label
     phys, _run = parse_sets(_sets(set))
     p, label, _extra = load_params(Options(preset=preset, params=params), phys)
-    if not (isinstance(ramp, (int, float)) and ramp > 0.0 and math.isfinite(ramp)):
-        raise RunError(f'ramp: {ramp!r} s must be > 0')
+    _number('ramp', ramp, 's', 0.0, math.inf, lo_open=True, optional=False)
     rows = pullout_curve(p, None if rates is None else [float(r) for r in rates], ramp)
     if output:
         write_csv(rows, output)
@@ -742,6 +773,8 @@ def stability(preset=None, *, params=None, set=None, speed=None, drive='velocity
     """
     from .options import load_params, parse_sets
     from ..analysis.stability import stability_table
+    _number('speed', speed, 'm/s')
+    _number('duration', duration, 's', 0.0, math.inf, lo_open=True, optional=False)
     phys, _run = parse_sets(_sets(set))
     p, _label, _extra = load_params(Options(preset=preset, params=params), phys)
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
@@ -832,6 +865,12 @@ def freqresp(recording=None, *, preset=None, params=None, set=None, input=None, 
 
     """
     from .freqresp.run import freqresp_run
+    _number('speed', speed, 'm/s', optional=False)
+    _number('fmin', fmin, 'Hz', 0.0, math.inf, lo_open=True)
+    _number('fmax', fmax, 'Hz', 0.0, math.inf, lo_open=True)
+    _number('step_rate', step_rate, 'Hz', 0.0, math.inf, lo_open=True)
+    if not (isinstance(points, int) and points >= 1):
+        raise RunError(f"option 'points': {points!r} must be an integer of at least 1")
     fields = dict(preset=preset, params=params, set=_sets(set), input=input, output=output,
                   loop=loop, quantity=quantity, mode=mode, speed=speed, rest=rest,
                   linear=linear, sampling=sampling, method=method, fmin=fmin, fmax=fmax,

@@ -89,3 +89,17 @@ def test_recover_copies_a_whole_file_and_says_what_a_cut_one_lost(tmp_path):
         assert sum(1 for _ in make_reader(fh).iter_messages()) == sum(cut.topics.values())
     with pytest.raises(ls.LeadscrewError, match='exists'):
         ls.recover(str(tmp_path / 'cut.mcap'))
+
+
+@pytest.mark.parametrize('call, kw, text', [
+    ('simulate', {'update_rate': 0.5}, "option 'update_rate': 0.5 Hz is outside the allowed "
+     "range [1.0, 1000000.0]"),
+    ('simulate', {'duration': -1.0}, "option 'duration': -1.0 s is outside"),
+    ('simulate', {'velocity': float('nan')}, "option 'velocity': nan m/s must be a finite"),
+    ('freqresp', {'linear': True, 'fmin': -1.0}, "option 'fmin': -1.0 Hz is outside"),
+    ('pullout', {'ramp': 0.0}, "option 'ramp': 0.0 s is outside"),
+])
+def test_a_bad_option_is_named_as_the_keyword_not_the_flag(call, kw, text):
+    with pytest.raises(ls.LeadscrewError) as err:
+        getattr(ls, call)(**kw)
+    assert text in str(err.value) and '--' not in str(err.value)
