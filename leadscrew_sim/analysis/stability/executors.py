@@ -1,6 +1,9 @@
 """
 Running the cases of a grid: in this process, on local worker processes, or on Dask.
 
+The work is spread by the analyses' one executor (:func:`..executors.map_batches`),
+which the frequency response's sine dwell shares.
+
 The cases go out in batches: runs of cases with the cases of one parameter
 set together (:func:`grouped_order`), so that a batch builds each set's
 parameters and model once and resets the model between its cases. Each batch
@@ -26,23 +29,18 @@ Ctrl-C (KeyboardInterrupt) stops the run: the finished rows are kept and the
 result says it is incomplete. An unreachable Dask scheduler fails within
 SCHEDULER_TIMEOUT seconds.
 """
-import concurrent.futures as cf
 import ctypes
-import math
-import multiprocessing
 import os
 import sys
-import threading
 
 import numpy as np
+
+from ..executors import map_batches, SCHEDULER_TIMEOUT
 
 __all__ = ['grouped_order', 'identical', 'keep_freed_memory', 'run_batch', 'run_cases',
            'SCHEDULER_TIMEOUT', 'warm']
 
-SCHEDULER_TIMEOUT = 8.0     #: seconds to reach a Dask scheduler (the error comes within 10 s)
-START_METHOD = None        #: local workers' start method; None: fork if safe, else spawn
 BATCHES_PER_WORKER = 16     #: batches per worker (load balance against per-batch cost)
-DASK_THREADS_UNKNOWN = 8    #: workers assumed when a Dask scheduler reports none yet
 _WARM = []                  # set once this process has warmed its kernel
 
 
@@ -101,13 +99,6 @@ def run_batch(base, cases, speed, drive, method, duration):
     return [run_case(base, c, speed, drive, method, duration, cache) for c in cases]
 
 
-def _start_method():
-    """Return 'fork' where it exists and this process runs no other Python thread, else 'spawn'."""
-    if 'fork' in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
-        return 'fork'
-    return 'spawn'
-
-
 def grouped_order(cases):
     """
     Return the case indices with the cases of one parameter set together (stable).
@@ -119,11 +110,6 @@ def grouped_order(cases):
     def key(i):
         return tuple(sorted((k, v) for k, v in cases[i].items() if k != 'speed'))
     return sorted(range(len(cases)), key=key)
-
-
-def _batches(n, workers):
-    size = max(1, math.ceil(n / (max(1, workers) * BATCHES_PER_WORKER)))
-    return [(i, min(n, i + size)) for i in range(0, n, size)]
 
 
 class _Progress:
@@ -144,56 +130,6 @@ class _Progress:
     def close(self):
         if self.on:
             sys.stderr.write('\n')
-
-
-def _put(rows, order, a, b, batch_rows):
-    for j, row in zip(order[a:b], batch_rows):
-        rows[j] = row
-
-
-def _local(args, spans, cases, order, workers, bar, rows):
-    if workers <= 1 or len(spans) <= 1:
-        for a, b in spans:
-            _put(rows, order, a, b, run_batch(args[0], cases[a:b], *args[1:]))
-            bar.add(b - a)
-        return
-    warm()                      # the parent fills numba's cache before any worker starts
-    ctx = multiprocessing.get_context(START_METHOD or _start_method())
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=warm)
-    try:
-        futs = {pool.submit(run_batch, args[0], cases[a:b], *args[1:]): (a, b)
-                for a, b in spans}
-        for fut in cf.as_completed(futs):
-            a, b = futs[fut]
-            _put(rows, order, a, b, fut.result())
-            bar.add(b - a)
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _dask(args, cases, order, scheduler, bar, rows):
-    from ...core.params import ParameterError
-    try:
-        from distributed import Client
-    except ImportError:
-        raise ParameterError('scheduler', 'needs dask[distributed] (pip install '
-                             '-r requirements.txt)') from None
-    try:
-        client = Client(scheduler, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ParameterError('scheduler', f'{scheduler!r}: no Dask scheduler reached within '
-                             f'{SCHEDULER_TIMEOUT:g} s ({type(exc).__name__})') from None
-    try:
-        warm()
-        threads = sum(client.nthreads().values()) or DASK_THREADS_UNKNOWN
-        spans = _batches(len(cases), threads)
-        futs = [client.submit(run_batch, args[0], cases[a:b], *args[1:], pure=False)
-                for a, b in spans]
-        for fut, (a, b) in zip(futs, spans):     # collected in submission order
-            _put(rows, order, a, b, fut.result())
-            bar.add(b - a)
-    finally:
-        client.close()
 
 
 def run_cases(base, cases, speed, drive='velocity', method='both', duration=2.0,
@@ -228,16 +164,21 @@ def run_cases(base, cases, speed, drive='velocity', method='both', duration=2.0,
         from ...core.params import ParameterError
         raise ParameterError('workers', f'{workers} is below the allowed minimum 1')
     rows = [None] * len(cases)
-    args = (base, speed, drive, method, duration)
     order = grouped_order(cases)
     by_params = [cases[j] for j in order]
     bar = _Progress(len(cases), progress)
+
+    def put(a, b, batch_rows):
+        for j, row in zip(order[a:b], batch_rows):
+            rows[j] = row
+        bar.add(b - a)
+
     complete = True
     try:
-        if scheduler is None:
-            _local(args, _batches(len(cases), workers), by_params, order, workers, bar, rows)
-        else:
-            _dask(args, by_params, order, scheduler, bar, rows)
+        map_batches(run_batch, lambda a, b: (base, by_params[a:b], speed, drive, method,
+                                             duration),
+                    len(cases), put, workers=workers, scheduler=scheduler, warm=warm,
+                    per_worker=BATCHES_PER_WORKER)
     except KeyboardInterrupt:
         complete = False
     finally:
