@@ -147,6 +147,7 @@ def test_simulate_file_layout(sim_file):
                      '/thread_force': 'geometry_msgs/msg/WrenchStamped',
                      '/sim/joint_states': 'sensor_msgs/msg/JointState',
                      '/sim/thread_state': 'leadscrew_sim/msg/ThreadState',
+                     '/sim/ageing': 'leadscrew_sim/msg/AgeingState',
                      '/axis/robot_description': 'std_msgs/msg/String',
                      '/tf_static': 'tf2_msgs/msg/TFMessage',
                      '/tf': 'tf2_msgs/msg/TFMessage'}
@@ -176,7 +177,7 @@ def test_simulate_file_layout(sim_file):
         for conn, _t, raw in r.messages():
             r.deserialize(raw, conn.msgtype)
             n += 1
-    assert n == 7002      # 7 per tick (command, 5 states, /tf) plus the 2 description messages
+    assert n == 8002      # 8 per tick (command, 6 states, /tf) plus the 2 description messages
 
 
 # ---------------------------------------------------------------------------
@@ -237,7 +238,8 @@ def test_simulate_tick_order_with_force_changes(profile, tmp_path):
             expected.append(('/external_force', k * ms))
         expected += [(t, (k + 1) * ms) for t in ('/axis/joint_states', '/nut_position',
                                                  '/thread_force', '/sim/joint_states',
-                                                 '/sim/thread_state', '/tf', '/clock')]
+                                                 '/sim/thread_state', '/sim/ageing', '/tf',
+                                                 '/clock')]
     assert [(t, lt) for t, lt, _ in seq] == expected
     r = cli_ok('resim', out, '--output', tmp_path / 'again.mcap')
     assert _overall(r.stdout) == 0.0

@@ -47,6 +47,7 @@ TYPES = {
     '/thread_force': 'geometry_msgs/msg/WrenchStamped',
     '/sim/joint_states': 'sensor_msgs/msg/JointState',
     '/sim/thread_state': 'leadscrew_sim/msg/ThreadState',
+    '/sim/ageing': 'leadscrew_sim/msg/AgeingState',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
     '/velocity_command': 'std_msgs/msg/Float64',
     '/position_command': 'std_msgs/msg/Float64',
