@@ -76,6 +76,9 @@ def _figures_profile(args, rec):
                            f'PROFILE ({", ".join(PROFILES)})')
     if name is not None and name not in PROFILES:
         raise RunError(f'--figures {name!r}: no such profile ({", ".join(PROFILES)})')
+    if name == 'warmup':
+        raise RunError(f'--figures warmup: the warm-up\'s figure is the drift at its stops '
+                       f'(leadscrew_sim plot {args.file})')
     if name is not None and not getattr(PROFILES[name], 'figures', True):
         raise RunError(f'--figures {name}: a frequency-response profile has no derived '
                        f'figures (leadscrew_sim freqresp {args.file})')

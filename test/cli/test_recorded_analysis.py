@@ -127,4 +127,4 @@ def test_info_reports_the_breakaway_torques_of_an_excite_run(tmp_path):
     bad = cli('info', out, '--figures', 'nope')
     assert bad.returncode == 1 and bad.stderr.strip().splitlines() == [
         "leadscrew_sim: error: --figures 'nope': no such profile (breakaway, sweep, "
-        "reversals, iso230, chirp, multisine)"], bad.stderr
+        "reversals, iso230, warmup, chirp, multisine)"], bad.stderr

@@ -203,6 +203,7 @@ class Warmup(Profile):
 
     name = 'warmup'
     kind = 'position'
+    figures = False             # its figure is the drift at the stops: leadscrew_sim plot
     summary = 'ISO 230-3 warm-up: back-and-forth moves with measurement stops (thermal drift)'
     OPTIONS = {
         'center': ('m', 'middle of the stroke', -100.0, 100.0, False),
