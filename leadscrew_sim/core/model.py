@@ -108,6 +108,7 @@ class LeadScrewModel(DriveControl, ReportedValues):
         except ParameterError:
             self.params, self._P, self.substep, self.nsub = old
             raise
+        self._report_ageing()       # the coefficients and growth the new set reports
 
     def substeps_for(self, dt):
         """

@@ -60,6 +60,23 @@ def pack_ageing(p, v):
     v[P_MUKDR] = p.mu_k_dry
 
 
+#: ageing_constants of an axis that does not age (every rate off): the same types.
+NOT_AGEING = (False, False, False, False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@kernel_jit
+def aged(P, S):
+    """
+    Return True if the axis ages or has aged: a rate is on, or the state is not a new axis's.
+
+    A new axis with every rate off (the default) skips the ageing's set-up in
+    each call of the kernel: a one-step call pays nothing for it.
+    """
+    return (P[P_WEAR] > 0.0 or P[P_ILIFE] > 0.0 or P[P_HCAP] > 0.0 or S[S_LUB] != 1.0
+            or S[S_WLA] != 0.0 or S[S_WUA] != 0.0 or S[S_WLB] != 0.0 or S[S_WUB] != 0.0
+            or S[S_TEMP] != P[P_TAMB])
+
+
 @kernel_jit
 def ageing_constants(P, dt):
     """

@@ -35,8 +35,8 @@ from ._jit import kernel_jit, refresh_cache
 from .drive import (FAULT_INJECTED, FAULT_NONE, FAULT_OVERSPEED, MODE_POSITION, MODE_TORQUE,
                     update_period)
 from .sensors import sample
-from .ageing import (ageing_constants, ageing_outputs, ageing_step, flank_gaps, growth_factor,
-                     thread_constants)
+from .ageing import (aged, ageing_constants, ageing_outputs, ageing_step, flank_gaps,
+                     growth_factor, NOT_AGEING, thread_constants)
 from .impulses import friction_impulses
 from .stepper import (
     command_direction, load_stepper, stepper_constants, stepper_outputs, stepper_substep,
@@ -147,16 +147,23 @@ def _steps(P, S, out, torques, forces, cmds, dt, nsub, wk, iwk, rec):
     rc, sl, cl = lc[0], lc[1], P[P_CL]
     # ageing (ageing.py): the worn flanks' half gaps, the thread friction at the lubricant
     # state, the screw's thermal strain; updated after each step while a rate is on
-    ac = ageing_constants(P, dt)
-    ageing_on = ac[0]
-    wr = flank_gaps(S, bc[3])
-    k_tie = 0.5 * P[P_K] if (ac[1] and two_nuts) else 0.0
     fc0 = lc[2]
-    lc = _with_friction(lc, thread_constants(P, S, fc0, ac))
-    grow = growth_factor(S, ac)
+    hb = bc[3]
+    if aged(P, S):
+        ac = ageing_constants(P, dt)
+        wr = flank_gaps(S, hb)
+        k_tie = 0.5 * P[P_K] if (ac[1] and two_nuts) else 0.0
+        lc = _with_friction(lc, thread_constants(P, S, fc0, ac))
+        grow = growth_factor(S, ac)
+        ageing_outputs(P, S, out, 0.0, grow, S[S_XA])
+    else:   # a new axis that does not age: nothing to set up (its outputs are as reset left)
+        ac = NOT_AGEING
+        wr = (hb, hb, hb, hb)
+        k_tie = 0.0
+        grow = 0.0
+    ageing_on = ac[0]
     grow_on = grow != 0.0
     x_fix = ac[11]
-    ageing_outputs(P, S, out, 0.0, grow, S[S_XA])
     mu_r_col = P[P_MUC] * P[P_RCOL]
     alpha = 1.0 if P[P_TAU] <= 0.0 else 1.0 - math.exp(-h / P[P_TAU])
     t_scale = P[P_TSCALE]
