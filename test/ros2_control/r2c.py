@@ -24,6 +24,7 @@ It imports only the standard library at the top, and helpers (which does
 the same), so that both interpreters load it.
 """
 import json
+import math
 import os
 from pathlib import Path
 import queue
@@ -663,11 +664,14 @@ def _serve():   # pragma: no cover - runs under the stack's Python
         goal.goal_tolerance = [JointTolerance(name=joint, position=req['goal_tolerance'])]
         goal.goal_time_tolerance = duration(req['goal_time_tolerance'])
         worst = [0.0]
+        samples = []
 
         def feedback(msg):
             err = msg.feedback.error.positions
             if err:
                 worst[0] = max(worst[0], abs(err[0]))
+                vel = msg.feedback.desired.velocities
+                samples.append((float(err[0]), float(vel[0]) if vel else math.nan))
         sent = time.time_ns()
         fut = act.send_goal_async(goal, feedback_callback=feedback)
         rclpy.spin_until_future_complete(node, fut, timeout_sec=10.0)
@@ -682,6 +686,7 @@ def _serve():   # pragma: no cover - runs under the stack's Python
                     'error_string': f'no result within {timeout} s'}
         return {'accepted': True, 'status': res.status, 'error_code': res.result.error_code,
                 'error_string': res.result.error_string, 'max_feedback_error': worst[0],
+                'feedback': samples,
                 'sent_ns': sent, 'done_ns': time.time_ns()}
 
     ops = {'list': op_list, 'switch': op_switch, 'follow': op_follow}

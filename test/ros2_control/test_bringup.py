@@ -14,9 +14,11 @@ and ros2_controllers 4.8:
   limits, reported in diagnostics;
 - one publisher per topic in the root namespace;
 - a torque beyond the limit trips an overspeed fault, not a crash into the stop;
-- position and velocity interfaces together halve the trajectory's error.
+- position and velocity interfaces together halve the trajectory's typical error
+  at speed.
 """
 import math
+import statistics
 
 from diagnostic_msgs.msg import DiagnosticArray
 from leadscrew_sim.core import load_preset
@@ -120,27 +122,41 @@ def test_a_runaway_torque_trips_overspeed_not_the_end_stop(axis):
     assert a.spin_until(lambda: diags[-1]['drive_state'] == 'enabled', 5.0), diags[-1]
 
 
-def max_tracking_error(a, move):
-    """Follow ``move`` = [(t, x)] from the nut's position; return the feedback's largest error."""
+def cruise_errors(a, move):
+    """
+    Follow ``move`` = [(t, x)] from the nut's position; return its errors [m] at speed.
+
+    These are the controller's feedback errors while the desired speed is at least
+    half its peak: the part of the move where the servo lag v / K_p shows.
+    """
     res = a.follow(move)
     assert res['accepted'] and res['error_code'] == 0, res
-    return res['max_feedback_error']
+    peak = max(abs(v) for _e, v in res['feedback'])
+    return [abs(e) for e, v in res['feedback'] if abs(v) >= 0.5 * peak]
 
 
 @pytest.mark.timeout(180, func_only=True)
 def test_position_velocity_halves_the_trajectory_error(axis):
-    """With the velocity feed-forward the trajectory's largest error is at most half."""
+    """With the velocity feed-forward the trajectory's typical error at speed is at most half."""
     errors = {}
     for ci in ('position', 'position_velocity'):
         a = axis(command_interface=ci, defaults=True, stroke=STROKE,
                  active=['joint_state_broadcaster', 'joint_trajectory_controller'])
         x0 = a.nut()
         # 20 mm in 1.5 s and back (peak 20 mm/s): the position loop alone lags
-        # v / K_p = 0.32 mm at the peak; the feed-forward takes the rate's share away
-        worst = max(max_tracking_error(a, [(1.5, x0 + 0.02)]),
-                    max_tracking_error(a, [(1.5, x0)]))
-        errors[ci] = worst
+        # v / K_p = 0.32 mm at the peak; the feed-forward takes the rate's share away.
+        # Both see the same transport and one controller period of sampling (about
+        # v T = 0.2 mm at 100 Hz).
+        errors[ci] = cruise_errors(a, [(1.5, x0 + 0.02)]) + cruise_errors(a, [(1.5, x0)])
         a.stop()
-    print(f'largest trajectory error: position {errors["position"] * 1e6:.1f} um, '
-          f'position_velocity {errors["position_velocity"] * 1e6:.1f} um')
-    assert errors['position_velocity'] <= 0.5 * errors['position'], errors
+    # The median, not the largest: a host that stalls a process for 0.2 s (seen
+    # under a loaded CI) makes one feedback sample's error anything; the median of
+    # the 20 Hz feedback over the cruise (about 30 samples) is the loop's own.
+    med = {ci: statistics.median(e) for ci, e in errors.items()}
+    print(f'trajectory error at speed, median (largest): position '
+          f'{med["position"] * 1e6:.1f} ({max(errors["position"]) * 1e6:.1f}) um, '
+          f'position_velocity {med["position_velocity"] * 1e6:.1f} '
+          f'({max(errors["position_velocity"]) * 1e6:.1f}) um; samples '
+          f'{len(errors["position"])}, {len(errors["position_velocity"])}')
+    assert min(len(e) for e in errors.values()) >= 10, errors
+    assert med['position_velocity'] <= 0.5 * med['position'], med
