@@ -100,6 +100,31 @@ def test_progress_per_stage_and_the_segments(commissioned):
         assert seg[n] == pytest.approx([a, b], abs=1e-9)
 
 
+def test_the_play_of_the_loaded_vertical_axis_is_not_fitted(commissioned):
+    """The vertical tr12x3's load holds the nut on one flank: no backlash fit, and why."""
+    from bag_factory import sim_states
+    rec, out, report, _err, _cpu = commissioned
+    # Oracle, the physics: the nut leaves the flank its weight presses only when the axis
+    # accelerates downward faster than g sin(beta). The measured nut velocity (a 1 um
+    # scale, differenced over 20 ms) bounds the reversals' acceleration far below that.
+    p = load_preset('tr12x3', **_truth())
+    a, b = report['sections']['axis']['segments']['reversals']
+    stamps, _pos, vel, _eff = sim_states(rec)
+    t = stamps / 1e9
+    k = (t >= a) & (t <= b)
+    v = np.convolve(vel[k, 1], np.ones(20) / 20, mode='valid')
+    accel = np.max(np.abs(np.diff(v[::20]))) / 0.02
+    print(f'reversals: largest nut acceleration {accel:.3g} m/s^2 against g sin(beta) '
+          f'{9.81 * math.sin(p.inclination):.3g} m/s^2')
+    assert accel < 0.5 * 9.81 * math.sin(p.inclination)
+    section = report['sections']['backlash']
+    assert not section['backlash_fitted'] and section['backlash_fit']['value'] is None, section
+    assert 'does not show' in section['backlash_fit']['reason'], section
+    assert any('one flank' in c for c in section['cannot']), section['cannot']
+    values = yaml.safe_load((out / 'fit.yaml').read_text())['/**']['ros__parameters']
+    assert 'backlash' not in values, values
+
+
 def efficiency_closed_forms(truth, v):
     """
     Return (forward, back-driving) efficiency of the truth's axis at nut speed ``v`` [m/s].

@@ -52,6 +52,36 @@ def run(ctx, part='reversals', title='Backlash'):
     return section
 
 
+#: Least RMS move of the twin's nut over the reversals per unit of added play [-] at which
+#: the play shows. Measured on tr12x3 (play 0.1 mm doubled): 0.014 on the vertical axis,
+#: whose load keeps the nut on one flank, against 0.65 on a horizontal one.
+LEAST_SHOW = 0.2
+#: Least play added for the test of whether the play shows [m].
+LEAST_ADDED = 5e-5
+
+
+def play_shows(ctx):
+    """
+    Return (whether the play moves the twin's nut over the reversals, the move per play).
+
+    Two re-simulations of the twin, at the calibrated backlash b and at b +
+    max(b, LEAST_ADDED): the RMS of the difference of their nut positions
+    over the reversals, over the play added. This costs two re-simulations;
+    the fit, when the play does not act, costs thousands to say so.
+    """
+    a, b = ctx.windows['reversals']
+    b0 = float(ctx.calibrated.backlash)
+    added = min(max(b0, LEAST_ADDED), 0.9 * float(ctx.calibrated.pitch) - b0)
+    xs = []
+    for play in (b0, b0 + added):
+        cols, tt = ctx.axis.resimulate(
+            ScrewParams.from_dict({'backlash': play}, base=ctx.calibrated), ctx.fit)
+        tt = tt - ctx.origin
+        xs.append(np.asarray(cols['nut_position'])[(tt >= a) & (tt <= b)])
+    per = float(np.sqrt(np.mean((xs[1] - xs[0]) ** 2))) / added if len(xs[0]) else 0.0
+    return per >= LEAST_SHOW, per
+
+
 def fit_backlash(ctx, section):
     """
     Fit the backlash on the recording up to the reversals' end, the friction held at the fit's.
@@ -71,6 +101,19 @@ def fit_backlash(ctx, section):
         section['cannot'].append('the backlash cannot be seen without a linear scale: the '
                                  'nut position is then the encoder\'s through the lead, which '
                                  'has no play in it; it keeps its starting value')
+        return
+    shows, per = play_shows(ctx)
+    if not shows:
+        section['backlash_fit'] = {
+            'value': None, 'lower': None, 'upper': None, 'verdict': 'not identifiable',
+            'reason': f'the play does not show: more play moves the twin\'s nut over the '
+                      f'reversals by {per:.3g} m per m (RMS), less than {LEAST_SHOW:g}',
+            'window': [0.0, ctx.windows['reversals'][1]], 'wall_s': None,
+            'held': {n: float(getattr(ctx.calibrated, n)) for n in FIT}}
+        section['cannot'].append(f'backlash: not identified on the reversals: more play moves '
+                                 f'the twin\'s nut there by {per:.3g} m per m (RMS); a vertical '
+                                 'loaded axis keeps the nut on one flank, so the play does not '
+                                 'show; it keeps its starting value')
         return
     _a, b = ctx.windows['reversals']
     path = os.path.join(ctx.work, 'backlash_window.mcap')
