@@ -33,11 +33,11 @@ Every error the package raises derives from ``leadscrew_sim.LeadscrewError``
 __all__ = ['LeadScrewModel', 'LeadscrewError', 'StepOutput', 'ParameterError', 'ScrewParams',
            'SimulationFault', 'load_preset', 'preset_names',
            'simulate', 'open_recording', 'identify', 'commission', 'resim', 'excite', 'pullout',
-           'stability', 'freqresp', 'recover', 'Mapping', 'RunError', 'MappingError']
+           'stability', 'freqresp', 'recover', 'info', 'Mapping', 'RunError', 'MappingError']
 
 #: The offline tools' calls (:mod:`leadscrew_sim.offline.library`) and their errors.
 _LIBRARY = ('simulate', 'open_recording', 'identify', 'commission', 'resim', 'excite',
-            'pullout', 'stability', 'freqresp', 'recover', 'Mapping')
+            'pullout', 'stability', 'freqresp', 'recover', 'info', 'Mapping')
 _ERRORS = {'RunError': 'options', 'MappingError': 'foreign.mapping'}
 
 

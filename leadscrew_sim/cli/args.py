@@ -1,9 +1,10 @@
 """The verbs' shared parser pieces: the one-line parser, its usage error, shared options."""
 import argparse
+import functools
 import sys
 
 from ..offline.foreign.mapping import COMMAND_KINDS, KIND_ALIASES
-from ..offline.options import RunError
+from ..offline.options import option_text, RunError
 
 PROG = 'leadscrew_sim'
 
@@ -25,6 +26,49 @@ def add_compression_argument(p):
     p.add_argument('--compression', choices=('lz4', 'zstd', 'none'), default='lz4',
                    help='chunk compression of the MCAP written (default lz4: written and read '
                         'about twice as fast as zstd, files about a third larger)')
+
+
+def flag_namer(parser, args):
+    """
+    Return name_of(keyword) -> the flag of the verb ``args.command`` that sets it.
+
+    The run library names options by their keywords (:class:`RunError`); a
+    keyword that is an option's destination is named by the option's first
+    spelling (``-o``, ``--set``), any other by its flag form (``step_rate``:
+    ``--step-rate``).
+    """
+    flags = {}
+    verb = getattr(args, 'command', None)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and verb in action.choices:
+            for a in action.choices[verb]._actions:
+                if a.option_strings and a.help != argparse.SUPPRESS:
+                    flags.setdefault(a.dest, a.option_strings[0])
+
+    def name_of(keyword):
+        return flags.get(keyword) or '--' + keyword.replace('_', '-')
+    return name_of
+
+
+@functools.lru_cache(maxsize=None)
+def verb_flags(add_arguments):
+    """
+    Return name_of(keyword) -> the flag of the verb whose options ``add_arguments`` adds.
+
+    Named as :func:`flag_namer` names them, for the texts a verb prints that
+    name options as ``<<keyword>>`` (report lines, hints, warnings): its
+    ``run(args)`` has no parser, so this builds one of the verb's own options
+    (the verb passes its ``add_arguments``; importing the command line's
+    parser here would tie the modules in an import circle).
+    """
+    parser = Parser(prog=PROG)
+    add_arguments(parser.add_subparsers(dest='command').add_parser('verb'))
+    return flag_namer(parser, argparse.Namespace(command='verb'))
+
+
+def flag_text(add_arguments, text):
+    """Return ``text`` with each ``<<keyword>>`` named as :func:`verb_flags` names it."""
+    return option_text(text, verb_flags(add_arguments))
 
 
 class _DeprecatedAlias(argparse.Action):

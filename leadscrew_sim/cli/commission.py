@@ -10,7 +10,7 @@ its parts in a segments sidecar. The run library is
 :mod:`leadscrew_sim.offline.commission.run`; the fit takes the options of
 ``identify`` (starting values) that this verb passes on.
 """
-from .args import add_mapping_arguments
+from .args import add_mapping_arguments, verb_flags
 from ..offline.foreign.mapping import Mapping
 from ..offline.commission.run import commission
 from ..offline.library import identify_options
@@ -47,7 +47,8 @@ def run(args):
     fit_options = identify_options(args.run, preset=args.preset, params=args.params,
                                    set_items=args.set, mapping=mapping, map_file=args.map)
     commission(args.run, args.output, fit_options, args.segments,
-               progress=(lambda line: None) if args.quiet else _say)
+               progress=(lambda line: None) if args.quiet else _say,
+               name_of=verb_flags(add_arguments))
     return 0
 
 

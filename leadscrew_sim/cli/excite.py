@@ -74,7 +74,7 @@ def run(args):
     profile = make_profile(args.name, params, **options)
     if args.rate is None:
         args.rate = getattr(profile, 'command_rate', 100.0)
-    check_finite('--command-rate', args.rate)
+    check_finite('command_rate', args.rate)
     if args.rate < getattr(profile, 'min_command_rate', 0.0):
         raise RunError(f'--command-rate {args.rate:g} Hz is below 2.5 fmax = '
                        f'{profile.min_command_rate:g} Hz of the {profile.name}: raise it or '

@@ -4,6 +4,7 @@ The ``freqresp`` verb: the axis's frequency response (Bode plot) from three sour
 Parses the flags (doc/frequency_response.md) and calls
 :func:`leadscrew_sim.offline.freqresp.run.freqresp_run`; prints its summary.
 """
+from .args import flag_text
 from ..offline.freqresp.run import freqresp_run
 
 HELP = ('frequency response: linear model, simulated sine dwell / chirp / multisine, or a '
@@ -80,5 +81,5 @@ def run(args):
     """Run the verb; return the exit status."""
     res = freqresp_run(args)
     if not args.quiet:
-        print('\n'.join(res['lines']))
+        print(flag_text(add_arguments, '\n'.join(res['lines'])))
     return 0

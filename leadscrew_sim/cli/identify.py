@@ -5,7 +5,7 @@ The fit is :func:`leadscrew_sim.offline.identify.run.fit_recording`; this verb
 parses its options, prints the report (:mod:`.identify_report`) and has the
 report, the parameter file and the plot written.
 """
-from .args import add_deprecated_alias, add_mapping_arguments
+from .args import add_deprecated_alias, add_mapping_arguments, verb_flags
 from .identify_report import report
 from ..analysis.identify import fit as ident
 from ..offline.identify.run import fit_recording
@@ -56,8 +56,9 @@ def run(args):
     finally:
         if progress is not None:
             progress.done()
-    text = report(args.file, out)
+    flags = verb_flags(add_arguments)
+    text = report(args.file, out, flags)
     if not args.quiet:
         print(text)
-    write_outputs(args, out, text)
+    write_outputs(args, out, text, flags)
     return 0

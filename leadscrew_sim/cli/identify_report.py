@@ -5,6 +5,7 @@ The verb prints it (unless ``--quiet``) and ``--report`` writes it to a file.
 """
 import numpy as np
 
+from ..offline.options import option_text
 from ..analysis.identify.fit import LEVEL
 from ..offline.identify.run import SHIFT
 from ..core.params import ScrewParams
@@ -28,7 +29,7 @@ def _static(episodes, most=8):
             f'sliding in contact: {shown}{more}')
 
 
-def report(path, out):
+def report(path, out, name_of=None):
     """
     Return the report of a fit as text.
 
@@ -38,6 +39,9 @@ def report(path, out):
         The recording.
     out : dict
         What :func:`leadscrew_sim.offline.identify.run.fit_recording` returned.
+    name_of : callable, optional
+        ``name_of(keyword)``: the name of an option the report names (default
+        its keyword; the verb gives its flags).
 
     """
     problem, res = out['problem'], out['res']
@@ -49,7 +53,7 @@ def report(path, out):
              'and quantisation; each position signal with a free offset)']
     if problem.foreign:
         delay = problem.source.delay
-        lines.append(delay.line().replace('--command-delay sets it', 'the mapping sets it')
+        lines.append(delay.line().replace('<<command_delay>> sets it', 'the mapping sets it')
                      if delay.how == 'set' else delay.line())
         if problem.fit_delay:
             lines.append(f'  fitted with the parameters: {problem.delay * 1e3:.3f} ms (each '
@@ -128,4 +132,4 @@ def report(path, out):
               f'{pct} % intervals from the t distribution with {res.dof} degrees of freedom',
               f'{problem.evaluations} re-simulations ({res.nfev} in the fit), '
               f'{out["wall"]:.2f} s wall; optimiser: {res.message}']
-    return '\n'.join(lines)
+    return option_text('\n'.join(lines), name_of)

@@ -10,7 +10,7 @@ import sys
 
 from . import (commission, excite, freqresp, identify, info, play, plot, pullout, recover,
                resim, simulate, stability)
-from .args import Parser, PROG, UsageError
+from .args import flag_namer, Parser, PROG, UsageError
 from ..offline.options import RunError
 from ..core.params import ParameterError
 from ..core.warmup import kernel_ready
@@ -47,15 +47,19 @@ def build_parser():
 def main(argv=None):
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    parser, args = build_parser(), None
     try:
-        args = build_parser().parse_args(argv)
+        args = parser.parse_args(argv)
         if args.command in KERNEL_VERBS and not getattr(args, 'quiet', False):
             kernel_ready(lambda text: print(f'{PROG}: {text}', file=sys.stderr), always=False)
         return args.func(args)
     except UsageError as exc:
         print(f'{PROG}: error: {exc} (see {PROG} --help)', file=sys.stderr)
         return 2
-    except (RunError, ParameterError, RecordingError, RunFileError) as exc:
+    except RunError as exc:
+        print(f'{PROG}: error: {exc.naming(flag_namer(parser, args))}', file=sys.stderr)
+        return 1
+    except (ParameterError, RecordingError, RunFileError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:

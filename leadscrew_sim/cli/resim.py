@@ -6,7 +6,7 @@ The run is :func:`leadscrew_sim.offline.replay.run.resim` (the re-simulation
 :mod:`leadscrew_sim.offline.replay.compare`); this verb parses its options and
 prints the difference table, or the twin's report for a foreign recording.
 """
-from .args import add_compression_argument, add_mapping_arguments
+from .args import add_compression_argument, add_mapping_arguments, verb_flags
 from .event_lines import print_events
 from ..offline.foreign.twin import plot_twin, report_lines
 from ..offline.replay.compare import compare
@@ -48,7 +48,8 @@ def run(args):
 def _twin_report(args, done):
     """Print the report of a foreign recording against its twin; plot it with ``--plot``."""
     overrides = f' ({" ".join(args.set)})' if args.set else ''
-    for line in report_lines(done.comparison, f' with {done.label}{overrides}'):
+    for line in report_lines(done.comparison, f' with {done.label}{overrides}',
+                             verb_flags(add_arguments)):
         print(line)
     if args.plot:
         plot_twin(done.comparison, args.plot)

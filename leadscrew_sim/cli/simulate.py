@@ -6,7 +6,7 @@ its options and prints what it wrote.
 """
 import sys
 
-from .args import add_compression_argument, add_deprecated_alias, PROG
+from .args import add_compression_argument, add_deprecated_alias, flag_text, PROG
 from .event_lines import print_events
 from ..analysis.excitation.profiles import PROFILES
 from ..offline.options import DEFAULT_PRESET
@@ -81,4 +81,4 @@ def run(args):
 
 def _warn(text):
     """Print a warning of the run on stderr."""
-    print(f'{PROG}: warning: {text}', file=sys.stderr)
+    print(f'{PROG}: warning: {flag_text(add_arguments, text)}', file=sys.stderr)

@@ -3,7 +3,7 @@ The ageing state file: one axis's wear, lubricant and temperature across runs.
 
 A HIL campaign wears one axis over many runs: the node loads the state at
 start and writes it at shutdown and periodically (``ageing_state_file``);
-``simulate --ageing-from`` reads a recording instead. The file is JSON:
+simulate's ``ageing_from`` option reads a recording instead. The file is JSON:
 
 - ``format``: :data:`FORMAT`;
 - ``preset`` and ``axis``: the preset and the fields that make the axis what

@@ -31,11 +31,13 @@ from .analysis_calls import (excite, ExciteResult, freqresp, pullout, PulloutRes
                              resim, ResimResult, stability, StabilityResult)
 from .call_options import (_mapping_fields, _number, _opt_sets, _recording, _sets, Mapping,
                            open_recording, Options, Recording, RunError)
-from .options import open_recording as _open
+from .info import info, InfoResult
+from .options import open_recording as _open, option_text
 
-__all__ = ['CommissionResult', 'ExciteResult', 'IdentifyResult', 'Mapping', 'Options',
+__all__ = ['CommissionResult', 'ExciteResult', 'IdentifyResult', 'InfoResult', 'Mapping',
+           'Options',
            'PulloutResult', 'Recording', 'ResimResult', 'SimulateResult', 'StabilityResult',
-           'commission', 'excite', 'freqresp', 'identify', 'identify_options',
+           'commission', 'excite', 'freqresp', 'identify', 'identify_options', 'info',
            'open_recording', 'pullout', 'recover', 'resim', 'simulate', 'stability']
 
 
@@ -317,7 +319,7 @@ def _identify_result(out):
         values[name] = float(value) if vd.fitted else float(getattr(out['params'], name))
         ok = vd.identified and math.isfinite(vd.lower) and math.isfinite(vd.upper)
         intervals[name] = (float(vd.lower), float(vd.upper)) if ok else None
-        verdicts[name], reasons[name] = vd.status, vd.reason
+        verdicts[name], reasons[name] = vd.status, option_text(vd.reason)
     final = out.get('final')
     misfit = {}
     if final is not None:

@@ -1,5 +1,5 @@
 """
-What the offline runs share: the user-facing error, ``--set``, parameters, progress, memory.
+What the offline runs share: the user-facing error, ``set``, parameters, progress, memory.
 
 The verbs of the command line parse arguments and call this run library; a
 :class:`RunError` it raises is printed by the verb as one line, and a failed
@@ -11,6 +11,7 @@ import difflib
 import gc
 import math
 from pathlib import Path
+import re
 import sys
 import time
 
@@ -28,8 +29,38 @@ NS = 1_000_000_000
 DEFAULT_PRESET = 'tr12x3'
 
 
+#: An option named in a message, by its keyword: ``<<name>>``.
+_OPTION = re.compile(r'<<([a-z][a-z0-9_]*)>>')
+
+
+def option_text(template, name_of=None):
+    """
+    Return ``template`` with each ``<<name>>`` named by ``name_of(name)`` (default the keyword).
+
+    The run library names the options of its calls by their keywords; the
+    command line names them by their flags, through this one function.
+    """
+    return _OPTION.sub(lambda m: m.group(1) if name_of is None else name_of(m.group(1)),
+                       template)
+
+
 class RunError(LeadscrewError):
-    """A user-facing error of an offline run: printed as one line, exit status 1."""
+    """
+    A user-facing error of an offline run: printed as one line, exit status 1.
+
+    Its message names an option of the call as ``<<name>>``: ``str()`` reads
+    the keyword (``step_rate``), and :meth:`naming` gives the text with
+    another name of each, as the command line does with its flags.
+    """
+
+    def __init__(self, message=''):
+        """Keep the message with its option marks; the error's text names the keywords."""
+        self.template = str(message)
+        super().__init__(option_text(self.template))
+
+    def naming(self, name_of):
+        """Return the message with each option named by ``name_of(keyword)``."""
+        return option_text(self.template, name_of)
 
 
 @contextlib.contextmanager
@@ -54,7 +85,7 @@ def simulation_faults(where=''):
 
 
 def parse_scalar(text):
-    """Parse a --set value as a YAML scalar; '1e-4' counts as a number."""
+    """Parse a ``set`` value as a YAML scalar; '1e-4' counts as a number."""
     try:
         value = yamlio.load(text)
     except yamlio.YAMLError:
@@ -75,19 +106,19 @@ def parse_sets(items):
         name, sep, text = item.partition('=')
         name = name.strip()
         if not sep or not name:
-            raise RunError(f'--set {item!r}: expected name=value')
+            raise RunError(f'<<set>> {item!r}: expected name=value')
         value = parse_scalar(text)
         if field_name(name) in names:
             phys[field_name(name)] = value
         elif name == 'joint_prefix':
             run[name] = '' if value is None else str(text)
         else:
-            raise RunError(f"--set: unknown parameter '{name}' ({did_you_mean(name)})")
+            raise RunError(f"<<set>>: unknown parameter '{name}' ({did_you_mean(name)})")
     return phys, run
 
 
 def did_you_mean(name):
-    """Return the hint for an unknown ``--set`` name: its nearest accepted names."""
+    """Return the hint for an unknown ``set`` name: its nearest accepted names."""
     known = ScrewParams.parameter_names() + ('joint_prefix',)
     close = difflib.get_close_matches(name, known, n=3)
     if close:
@@ -96,39 +127,39 @@ def did_you_mean(name):
             'the run setting is joint_prefix')
 
 
-def parse_options(items, flag='--opt'):
-    """Return {name: value} of ``name=value`` strings given to option ``flag``."""
+def parse_options(items, option='opt'):
+    """Return {name: value} of ``name=value`` strings given to the option of keyword ``option``."""
     out = {}
     for item in items or ():
         name, sep, text = item.partition('=')
         name = name.strip()
         if not sep or not name:
-            raise RunError(f'{flag} {item!r}: expected name=value')
+            raise RunError(f'<<{option}>> {item!r}: expected name=value')
         out[name] = parse_scalar(text)
     return out
 
 
 def check_finite(name, value):
-    """Raise RunError unless option ``name`` has a finite ``value``."""
+    """Raise RunError unless the option of keyword ``name`` has a finite ``value``."""
     if not math.isfinite(value):
-        raise RunError(f'{name} {value!r} is not a finite number')
+        raise RunError(f'<<{name}>> {value!r} is not a finite number')
 
 
 def load_params(args, phys_overrides):
-    """Return (ScrewParams, preset label, extra settings from a --params file)."""
+    """Return (ScrewParams, preset label, extra settings from a ``params`` file)."""
     if args.params and args.preset:
-        raise RunError('give --preset or --params, not both')
+        raise RunError('give <<preset>> or <<params>>, not both')
     extra = {}
     if args.params:
         try:
             values = read_parameter_file(args.params)
         except OSError as exc:
-            raise RunError(f'--params {args.params}: {exc.strerror or exc}') from None
+            raise RunError(f'<<params>> {args.params}: {exc.strerror or exc}') from None
         except ParameterError:
-            raise RunError(f'--params {args.params}: no "<node>: ros__parameters:" '
+            raise RunError(f'<<params>> {args.params}: no "<node>: ros__parameters:" '
                            'section') from None
         except Exception as exc:  # noqa: B902 - YAML syntax errors of many kinds
-            raise RunError(f'--params {args.params}: cannot parse YAML: '
+            raise RunError(f'<<params>> {args.params}: cannot parse YAML: '
                            f'{str(exc).splitlines()[0]}') from None
         phys, other = physics_subset(values)
         preset = other.get('preset')
@@ -193,7 +224,7 @@ class Progress:
 
 
 def compression_of(args):
-    """Return the McapWriter compression of ``--compression``."""
+    """Return the McapWriter compression of the ``compression`` option."""
     return '' if args.compression == 'none' else args.compression
 
 

@@ -1,11 +1,13 @@
 """
-The library's resim and excite calls, in-process.
+The library's resim, excite and info calls, in-process.
 
 Oracles: the mcap library's reading of the two files (the re-simulated
 states have the recorded bytes), a changed friction coefficient that must
 move the nut, and for a profile the options it was given: the reversals'
 extremes are centre plus and minus the amplitude, the warm-up's stops hold
-their targets.
+their targets. For info: the mcap library's message counts and mcap_ros2's
+decoding of the states; a recording stripped of its records is surveyed,
+and its proposals name keywords, not flags.
 """
 from mcap.reader import make_reader
 import numpy as np
@@ -103,3 +105,43 @@ def test_a_bad_option_is_named_as_the_keyword_not_the_flag(call, kw, text):
     with pytest.raises(ls.LeadscrewError) as err:
         getattr(ls, call)(**kw)
     assert text in str(err.value) and '--' not in str(err.value)
+
+
+def test_info_names_what_the_recording_holds(tmp_path):
+    """ls.info: the channels as the mcap library counts them, the states' range, the events."""
+    run = ls.simulate('tr12x3', duration=0.5, velocity=0.02, output=str(tmp_path / 'a.mcap'))
+    r = ls.info(ls.open_recording(run.path), resim=True)
+    with open(run.path, 'rb') as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        counts = {summary.channels[cid].topic: n
+                  for cid, n in summary.statistics.channel_message_counts.items()}
+    assert {c.topic: c.count for c in r.channels} == counts
+    assert r.leadscrew and r.run['preset'] == 'tr12x3' and r.survey is None
+    # the joint states' nut positions, decoded by the tests' own CDR reading (mcap_ros2)
+    from bag_factory import sim_states
+    _stamps, pos, _vel, _eff = sim_states(run.path)
+    assert r.states['nut_final'] == pos[-1, 1]
+    assert r.states['nut_min'] == pos[:, 1].min() and r.states['nut_max'] == pos[:, 1].max()
+    # 0.5 s at 1 kHz: the rate of the states is the step rate (to the count's rounding)
+    js = next(c for c in r.channels if c.topic == '/axis/joint_states')
+    assert js.rate == pytest.approx(1000.0, rel=0.01)
+    assert r.thread is not None and 0.0 <= r.thread.stick <= 1.0
+    assert sum(r.thread.contact.values()) == pytest.approx(1.0)
+    assert isinstance(r.events, list)
+    with pytest.raises(ls.LeadscrewError, match="figures 'nope'"):
+        ls.info(run.path, figures='nope')
+
+
+def test_info_of_a_foreign_recording_names_the_keywords(tmp_path):
+    """A recording without the parameters record: the survey proposes options by keyword."""
+    from bag_factory import strip_records
+    run = ls.simulate('tr12x3', duration=0.2, velocity=0.02, output=str(tmp_path / 'a.mcap'))
+    bare = tmp_path / 'bare.mcap'
+    strip_records(run.path, bare)
+    r = ls.info(str(bare))
+    assert not r.leadscrew and r.survey
+    text = '\n'.join(r.survey)
+    assert 'command_topic' in text and '--' not in text, text
+    assert any('--command-topic' in ln for ln in r.survey_text(lambda k: '--' + k.replace(
+        '_', '-'))), r.survey

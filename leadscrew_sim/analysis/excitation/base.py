@@ -213,7 +213,7 @@ class Profile:
         return f'excite={self.name} {opts}'
 
     def listing(self):
-        """Return the lines of ``excite --list`` for this profile."""
+        """Return the lines of the profile listing of ``excite`` for this profile."""
         lines = [f'{self.name}: {self.summary}',
                  f'  command {self.topic} [{self.unit}], duration {self.duration:.3f} s, '
                  f'{len(self.segments)} segments']

@@ -171,7 +171,7 @@ class Commission:
                 f'parts={",".join(n for n, _t, _p in self.parts)}')
 
     def listing(self):
-        """Return the lines of ``excite --list`` for this profile."""
+        """Return the lines of the profile listing of ``excite`` for this profile."""
         lines = [f'{self.name}: {self.summary}',
                  f'  commands {", ".join(self.topics)}, duration {self.duration:.3f} s, '
                  f'{len(self.parts)} parts']

@@ -128,7 +128,7 @@ class SpeedSweep(Profile):
         return stribeck_notes(self.params)
 
     def listing(self):
-        """Return the lines of ``excite --list``, with the :meth:`notes`."""
+        """Return the lines of the profile listing of ``excite``, with the :meth:`notes`."""
         return super().listing() + ['  ' + n for n in self.notes()]
 
     def describe(self):

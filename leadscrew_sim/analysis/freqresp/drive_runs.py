@@ -84,7 +84,7 @@ def _sliding(model, where, mode, speed, n, dt):
     if where not in ('velocity_command', 'velocity_loop') and not (
             where == 'external_force' and mode == 'velocity'):
         raise ParameterError('speed', f'{speed!r} m/s: a simulated measurement while sliding '
-                             'takes the velocity loop (velocity_command, --loop velocity, or '
+                             'takes the velocity loop (velocity_command, loop velocity, or '
                              'external_force with mode velocity)')
     room = (p.stroke_max if speed > 0 else p.stroke_min) - p.initial_position
     if abs(speed) * n * dt >= 0.9 * abs(room):

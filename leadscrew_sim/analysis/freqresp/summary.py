@@ -160,9 +160,10 @@ def amplitude_range(responses, limit_db=1.0):
     return sorted(freqs), sorted(amps)
 
 
-#: Said once when a linear model's thread is stuck at rest.
+#: Said once when a linear model's thread is stuck at rest (the options marked ``<<name>>``:
+#: the verb names them by their flags).
 STUCK = ('the thread is stuck at rest (stiction): the motor turns only by straining the '
-         'contact; use --speed V for a sliding operating point or --rest free')
+         'contact; use <<speed>> V for a sliding operating point or <<rest>> free')
 
 
 def _band(r):
@@ -230,7 +231,12 @@ def _items(items):
 
 
 def summary_lines(responses, linear=None):
-    """Return the summary as text lines for a list of responses (and the linear model's)."""
+    """
+    Return the summary as text lines for a list of responses (and the linear model's).
+
+    An option the lines name is marked ``<<keyword>>`` (:data:`STUCK`): the
+    verb names it by its flag (:func:`leadscrew_sim.offline.options.option_text`).
+    """
     lines = []
     every = ([linear] if linear is not None else []) + list(responses)
     if any(r.state == 'stuck' for r in every):

@@ -23,7 +23,7 @@ from .stages import backlash, fit, friction, iso230, response, stability, steppe
 from . import html, views
 from ..identify.inputs import start_params
 from ..identify.output import params_document, write_text
-from ..options import NS, open_recording, RunError
+from ..options import NS, open_recording, option_text, RunError
 from ...io.run_file import PARAMS_RECORD
 
 #: (name, function) of the stages in their order.
@@ -36,7 +36,8 @@ def _say(line):
     print(line, file=sys.stderr, flush=True)
 
 
-def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=None):
+def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=None,
+               name_of=None):
     """
     Commission the axis of recording ``path``; write DIR's three files; return the report dict.
 
@@ -57,6 +58,9 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=N
     keep : dict, optional
         Gets ``fit``: what the fit stage's :func:`fit_recording` returned
         (None: no fit).
+    name_of : callable, optional
+        ``name_of(keyword)``: the name of an option the report and fit.yaml
+        name (default its keyword; :func:`..options.option_text`).
 
     """
     t_all = time.perf_counter()
@@ -65,8 +69,8 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=N
     if rec.record(PARAMS_RECORD) is None and not Mapping.from_args(identify_args).given \
             and not own_command_specs(rec):
         raise RunError(f'{path}: does not map to an axis: no "{PARAMS_RECORD}" record and no '
-                       'mapping (a bag of another stack needs --command-topic and the joints, '
-                       f'or --map FILE.yaml; `leadscrew_sim info {path}` prints the flags '
+                       'mapping (a bag of another stack needs <<command_topic>> and the joints, '
+                       f'or <<map>> FILE.yaml; `leadscrew_sim info {path}` prints the flags '
                        'that fit it)')
     start, label = start_params(identify_args, rec)
     axis = open_axis(rec, identify_args, start)
@@ -86,7 +90,7 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=N
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
-        raise RunError(f'-o {out_dir}: {exc.strerror or exc}') from None
+        raise RunError(f'<<output>> {out_dir}: {exc.strerror or exc}') from None
     timings = {}
     with tempfile.TemporaryDirectory(prefix='commission_') as work:
         ctx = Context(path=str(path), rec=rec, windows=windows, commands=commands,
@@ -106,16 +110,16 @@ def commission(path, out_dir, identify_args, sidecar=None, progress=_say, keep=N
     sections['undetermined'] = _undetermined(sections)
     report = {'format': 'leadscrew_sim.commission/1', 'recording': str(path),
               'time_origin_s': origin,
-              'sections': _clean(sections), 'timings_s': timings,
+              'sections': _named(_clean(sections), name_of), 'timings_s': timings,
               'wall_s': time.perf_counter() - t_all, 'fitted_on': ctx.fitted_on}
     if keep is not None:
         keep['fit'] = getattr(ctx, 'fit', None)
-    _write_fit(os.path.join(out_dir, 'fit.yaml'), ctx)
-    write_text(os.path.join(out_dir, 'report.json'), json.dumps(report, indent=1) + '\n', '-o')
+    _write_fit(os.path.join(out_dir, 'fit.yaml'), ctx, name_of)
+    write_text(os.path.join(out_dir, 'report.json'), json.dumps(report, indent=1) + '\n', 'output')
     page = html.render(f'Commissioning report: {os.path.basename(str(path))}',
                        f'preset {label}; {duration:.1f} s recorded; segments from {source}',
-                       views.sections(ctx, report['sections']))
-    write_text(os.path.join(out_dir, 'report.html'), page, '-o')
+                       _named(views.sections(ctx, report['sections']), name_of))
+    write_text(os.path.join(out_dir, 'report.html'), page, 'output')
     report['wall_s'] = time.perf_counter() - t_all
     progress(f'commission: wrote {out_dir}/fit.yaml, report.json, report.html in '
              f'{report["wall_s"]:.1f} s')
@@ -181,12 +185,23 @@ def _clean(x):
     return x
 
 
-def _write_fit(path, ctx):
+def _named(x, name_of):
+    """Return ``x`` with each text's options (``<<keyword>>``) named by ``name_of``."""
+    if isinstance(x, str):
+        return option_text(x, name_of)
+    if isinstance(x, dict):
+        return {k: _named(v, name_of) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return type(x)(_named(v, name_of) for v in x)
+    return x
+
+
+def _write_fit(path, ctx, name_of=None):
     if ctx.fit is None:
         text = (f'# leadscrew_sim commission: nothing identified (no sweep); the starting '
                 f'values came from {ctx.label}\n/**:\n  ros__parameters: {{}}\n')
     else:
-        text = params_document(ctx.fit['params'], ctx.label, ctx.fit['res'])
+        text = params_document(ctx.fit['params'], ctx.label, ctx.fit['res'], name_of=name_of)
         text = text.replace('# leadscrew_sim identify:', '# leadscrew_sim commission (identify '
                             'on the sweep):', 1)
     fitted = getattr(ctx, 'backlash_fit', None)
@@ -195,4 +210,4 @@ def _write_fit(path, ctx):
         line = (f'    backlash: {value!r}  # commission: fitted on the reversals, 95 % '
                 f'interval [{lower:.6g}, {upper:.6g}] m')
         text = text.rstrip('\n') + '\n' + line + '\n'
-    write_text(path, text, '-o')
+    write_text(path, text, 'output')

@@ -3,10 +3,10 @@ Where the parts of a commissioning run lie in a recording: its record, a sidecar
 
 Three sources, in this order:
 
-- the segments record (:data:`SEGMENTS_RECORD`) that ``simulate --excite
-  commission`` writes: names and [start, end] log times [s];
-- a sidecar JSON file (``--segments FILE``, else ``RUN.segments.json``
-  beside the recording) that ``excite commission --segments FILE`` writes
+- the segments record (:data:`SEGMENTS_RECORD`) that ``simulate`` writes
+  with the excite profile commission: names and [start, end] log times [s];
+- a sidecar JSON file (the ``segments`` option, else ``RUN.segments.json``
+  beside the recording) that ``excite commission`` writes (its ``segments``)
   for a recording without markers (a node's or ``ros2 bag record``'s):
   ``{"format": "leadscrew_sim.segments/1", "start_ns": <system time of the
   first command>, "segments": {"sweep": [0.0, 19.5], ...}}``, times [s]
@@ -66,7 +66,7 @@ def write_sidecar(path, profile, start_ns):
             json.dump(doc, fh, indent=1)
             fh.write('\n')
     except OSError as exc:
-        raise RunError(f'--segments {path}: {exc.strerror or exc}') from None
+        raise RunError(f'<<segments>> {path}: {exc.strerror or exc}') from None
 
 
 def command_series(rec):
@@ -126,12 +126,12 @@ def _from_sidecar(path, rec, commands):
         with open(path) as fh:
             doc = json.load(fh)
     except OSError as exc:
-        raise RunError(f'--segments {path}: {exc.strerror or exc}') from None
+        raise RunError(f'<<segments>> {path}: {exc.strerror or exc}') from None
     except ValueError as exc:
-        raise RunError(f'--segments {path}: not JSON ({exc})') from None
+        raise RunError(f'<<segments>> {path}: not JSON ({exc})') from None
     if not isinstance(doc, dict) or doc.get('format') != SEGMENTS_FORMAT or not isinstance(
             doc.get('segments'), dict):
-        raise RunError(f'--segments {path}: not a segments file (want "format": '
+        raise RunError(f'<<segments>> {path}: not a segments file (want "format": '
                        f'"{SEGMENTS_FORMAT}" and a "segments" object)')
     firsts = [ts[0] for ts, _v in commands.values() if len(ts)]
     if not firsts:
@@ -145,7 +145,7 @@ def _from_sidecar(path, rec, commands):
     out = {}
     for name, span in doc['segments'].items():
         if name not in KINDS or not (isinstance(span, list) and len(span) == 2):
-            raise RunError(f'--segments {path}: bad segment {name!r}: {span!r} (want one of '
+            raise RunError(f'<<segments>> {path}: bad segment {name!r}: {span!r} (want one of '
                            f'{", ".join(KINDS)} with [start, end] in s)')
         out[name] = (t0 + float(span[0]), t0 + float(span[1]))
     return dict(sorted(out.items(), key=lambda kv: kv[1][0]))

@@ -177,7 +177,11 @@ _VIEWS = {'axis': axis, 'identify': parameters, 'twin': twin, 'friction': fricti
 
 
 def sections(ctx, report):
-    """Return [(number, id, heading, blocks)] of the page from the report's sections."""
+    """
+    Return [(number, id, heading, blocks)] of the page from the report's sections.
+
+    An option a text names is marked ``<<keyword>>`` (:func:`..options.option_text`).
+    """
     out = []
     for number, key, sid in ORDER:
         s = report.get(key)
@@ -187,7 +191,7 @@ def sections(ctx, report):
             continue
         blocks = _VIEWS[key](ctx, s)
         if key == 'iso230' and 'measured' not in s:
-            blocks = [('p', 'No iso230 segment (run excite commission --opt iso230=1).')]
+            blocks = [('p', 'No iso230 segment (run excite commission <<opt>> iso230=1).')]
         if key != 'undetermined':
             blocks.append(('cannot', s.get('cannot', [])))
         out.append((number, sid, s.get('title', key), blocks))

@@ -1,14 +1,14 @@
 """
 The commands of a foreign recording: decoded by type and sampled on the step grid.
 
-- ``std_msgs/Float64``: one value, what ``--command-kind`` says (motor torque
+- ``std_msgs/Float64``: one value, what ``command_kind`` says (motor torque
   [N m], nut velocity [m/s] or nut position [m]).
 - ``std_msgs/Float64MultiArray`` (forward_command_controller): entry
-  ``--command-index`` of ``data``, of ``--command-kind``.
+  ``command_index`` of ``data``, of ``command_kind``.
 - ``sensor_msgs/JointState``: the position, velocity and effort of
-  ``--command-joint``, through the node's mode rule (:class:`CommandHold`).
+  ``command_joint``, through the node's mode rule (:class:`CommandHold`).
 - ``trajectory_msgs/JointTrajectory`` (joint_trajectory_controller): the
-  position of ``--command-joint`` sampled at every step as the controller
+  position of ``command_joint`` sampled at every step as the controller
   samples it: the points lie at the header stamp (in the states' clock; the
   receipt time plus the delay when the stamp is zero) plus their
   ``time_from_start``; between two points linear in
@@ -73,7 +73,7 @@ class Commands:
             elif ctype == TRAJECTORY:
                 self._trajectories(datas, times, mapping, joints)
             else:
-                raise RunError(f'--command-topic {topic}: type {ctype!r} is not read (read: '
+                raise RunError(f'<<command_topic>> {topic}: type {ctype!r} is not read (read: '
                                f'{", ".join((FLOAT64, MULTI_ARRAY, JOINT_STATE, TRAJECTORY))})')
         except C.DecodeError as exc:
             raise RunError(f'{path}: a message on {topic} is not a valid {ctype} '
@@ -84,7 +84,7 @@ class Commands:
 
     def _scalars(self, ctype, datas, times, mapping):
         if self.command_kind is None:
-            raise RunError(f'--command-kind: give torque, velocity or position for the '
+            raise RunError(f'<<command_kind>>: give torque, velocity or position for the '
                            f'{ctype.split("/")[-1]} topic {self.topic}')
         self.kind = 'scalar'
         if ctype == FLOAT64:
@@ -99,7 +99,7 @@ class Commands:
             for i, d in enumerate(datas):
                 a = C.decode_float64_multi_array(bytes(d))
                 if index >= len(a):
-                    raise RunError(f'--command-index {index}: past the array of message {i} on '
+                    raise RunError(f'<<command_index>> {index}: past the array of message {i} on '
                                    f'{self.topic} ({len(a)} entries: give 0 .. {len(a) - 1})')
                 values[i] = a[index]
         ok = np.isfinite(values)
@@ -113,21 +113,21 @@ class Commands:
         if name is None:
             name = nut if nut in names else screw if screw in names else None
             if name is None:
-                raise RunError(f'--command-joint: the commands on {self.topic} name '
+                raise RunError(f'<<command_joint>>: the commands on {self.topic} name '
                                f'{", ".join(names) or "no joint"}; give the one to take')
         if name not in names:
-            raise RunError(f'--command-joint {name}: not in the commands on {self.topic} '
+            raise RunError(f'<<command_joint>> {name}: not in the commands on {self.topic} '
                            f'(joints: {", ".join(names) or "none"})')
         if name not in (screw, nut):
-            raise RunError(f'--command-joint {name}: is neither --screw-joint {screw} nor '
-                           f'--nut-joint {nut}')
+            raise RunError(f'<<command_joint>> {name}: is neither <<screw_joint>> {screw} nor '
+                           f'<<nut_joint>> {nut}')
         return name, 'nut' if name == nut else 'screw'
 
     def _joint_states(self, datas, times, mapping, joints):
         """
         Keep each message's (position, velocity, effort) of its mapped joint.
 
-        With ``--command-joint`` only that joint's values are taken; without,
+        With ``command_joint`` only that joint's values are taken; without,
         each message's own joint: the nut joint where it names it, else the
         screw joint (the node takes a torque on the screw joint and a nut
         position or velocity on the nut joint, one joint per message).

@@ -35,7 +35,7 @@ class Delay:
     """
     A command-to-state delay: its value [s], the half width of its interval [s], and how known.
 
-    ``how``: ``set`` (``--command-delay``), ``estimated``, ``not determined``
+    ``how``: ``set`` (the ``command_delay`` option), ``estimated``, ``not determined``
     (then ``value`` is 0 and ``half_width`` NaN) or ``uncertain`` (an
     estimate, ``estimate`` +- ``half_width``, too wide to start from: ``value``
     is 0).
@@ -48,19 +48,19 @@ class Delay:
     estimate: float = 0.0
 
     def line(self):
-        """Return the report line of the delay."""
+        """Return the report line of the delay (its option marked ``<<command_delay>>``)."""
         if self.how == 'set':
-            return f'command-to-state delay: {self.value * 1e3:.3f} ms (set by --command-delay)'
+            return f'command-to-state delay: {self.value * 1e3:.3f} ms (set by <<command_delay>>)'
         if self.how == 'estimated':
             return (f'command-to-state delay: {self.value * 1e3:.3f} ms +- '
                     f'{self.half_width * 1e3:.3f} ms (estimated from {self.signal}, about 95 %; '
-                    f'--command-delay sets it)')
+                    f'<<command_delay>> sets it)')
         if self.how == 'uncertain':
             return (f'command-to-state delay: 0 used (the estimate with the starting values, '
                     f'{self.estimate * 1e3:.3f} ms +- {self.half_width * 1e3:.3f} ms, is too '
-                    'uncertain to start from; --command-delay sets it)')
+                    'uncertain to start from; <<command_delay>> sets it)')
         return ('command-to-state delay: not determined (no motion in the mapped states); 0 '
-                'used, --command-delay sets it')
+                'used, <<command_delay>> sets it')
 
 
 def estimate(stamps, measured, sim_at, signal, offset=False, dt=1e-3):

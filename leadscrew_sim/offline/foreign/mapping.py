@@ -1,11 +1,11 @@
 """
 How a foreign recording maps onto the model: its state and command topics, joints and timing.
 
-The keys are the options of the verbs (``--state-topic``, ``--screw-joint``,
-``--nut-joint``, ``--command-topic``, ``--command-kind``, ``--command-index``,
-``--command-joint``, ``--command-delay``, ``--step-rate``) or the same keys
-in a YAML file (``--map FILE``, dashes or underscores); an option given on
-the command line wins over the file.
+The keys are the options of the verbs (``state_topic``, ``screw_joint``,
+``nut_joint``, ``command_topic``, ``command_kind``, ``command_index``,
+``command_joint``, ``command_delay``, ``step_rate``) or the same keys
+in a YAML file (the ``map`` option, dashes or underscores); an option given
+with the call wins over the file.
 """
 import dataclasses
 import math
@@ -91,7 +91,7 @@ class Mapping:
     @classmethod
     def from_args(cls, args):
         """
-        Return the mapping of parsed options: ``--map FILE`` with the options on top, checked.
+        Return the mapping of parsed options: the ``map`` file with the options on top, checked.
 
         Options the parser of a verb does not have count as not given.
         """
@@ -121,9 +121,9 @@ class Mapping:
         for key in ('command_kind', 'command_index', 'command_joint'):
             values = _as_list(getattr(self, key))
             if len(values) > 1 and len(values) != len(topics):
-                raise MappingError(f'--{key.replace("_", "-")}: {len(values)} values for '
-                                   f'{len(topics)} --command-topic: give one for all or one per '
-                                   'topic, in their order')
+                raise MappingError(f'<<{key}>>: {len(values)} values for '
+                                   f'{len(topics)} <<command_topic>>: give one for all or one '
+                                   'per topic, in their order')
             per[key] = values * len(topics) if len(values) == 1 else \
                 (values or [None] * len(topics))
         kinds = [k if k is not None or t is None else kind_from_name(t)
@@ -141,22 +141,22 @@ class Mapping:
         kinds = [KIND_ALIASES.get(k, k) for k in _as_list(self.command_kind)]
         for kind in kinds:
             if kind is not None and kind not in COMMAND_KINDS:
-                raise MappingError(f"--command-kind {kind!r}: must be one of "
+                raise MappingError(f"<<command_kind>> {kind!r}: must be one of "
                                    f"{', '.join(COMMAND_KINDS)} (or ros2_control's "
                                    f"{', '.join(KIND_ALIASES)})")
         self.command_kind = _one_or_list(kinds)
         indexes = []
         for index in _as_list(self.command_index):
-            if index is None:               # a --map commands entry without one
+            if index is None:               # a map file's commands entry without one
                 indexes.append(None)
                 continue
             try:
                 index = int(index)
             except (TypeError, ValueError):
-                raise MappingError(f'--command-index {index!r}: must be an '
+                raise MappingError(f'<<command_index>> {index!r}: must be an '
                                    'integer >= 0') from None
             if index < 0:
-                raise MappingError(f'--command-index {index}: must be >= 0')
+                raise MappingError(f'<<command_index>> {index}: must be >= 0')
             indexes.append(index)
         self.command_index = _one_or_list(indexes)
         for key, lo, hi in (('command_delay', -10.0, 10.0), ('step_rate', 1.0, 1e6)):
@@ -169,7 +169,7 @@ class Mapping:
                 v = math.nan
             if not (math.isfinite(v) and lo <= v <= hi):
                 unit = 's' if key == 'command_delay' else 'Hz'
-                raise MappingError(f'--{key.replace("_", "-")} {getattr(self, key)!r}: must lie '
+                raise MappingError(f'<<{key}>> {getattr(self, key)!r}: must lie '
                                    f'in [{lo:g}, {hi:g}] {unit}')
             setattr(self, key, v)
         for key in ('state_topic', 'screw_joint', 'nut_joint', 'command_topic',
@@ -178,19 +178,23 @@ class Mapping:
                 else [getattr(self, key)]
             for v in values:
                 if v is not None and (not isinstance(v, str) or not v):
-                    raise MappingError(f'--{key.replace("_", "-")} {v!r}: must be a non-empty '
+                    raise MappingError(f'<<{key}>> {v!r}: must be a non-empty '
                                        'name')
             if key in ('command_topic', 'command_joint'):
                 setattr(self, key, _one_or_list(values))
         self.specs()                # the per-topic lists fit the topics
 
     def flags(self):
-        """Return the options that give this mapping, for the user to copy."""
+        """
+        Return the options that give this mapping, for the user to copy.
+
+        Each is named ``<<keyword>>``: :func:`..options.option_text` names it
+        by its keyword, the command line by its flag.
+        """
         out = []
         for key in self.keys():
             for v in _as_list(getattr(self, key)):
-                out.append(f'--{key.replace("_", "-")} {v:g}' if isinstance(v, float)
-                           else f'--{key.replace("_", "-")} {v}')
+                out.append(f'<<{key}>> {v:g}' if isinstance(v, float) else f'<<{key}>> {v}')
         return ' '.join(out)
 
 
@@ -230,19 +234,19 @@ def is_state_topic(topic):
 
 
 def read_map_file(path):
-    """Return the keys of a ``--map`` YAML file (a mapping of the option names)."""
+    """Return the keys of a mapping YAML file (``map``: a mapping of the option names)."""
     try:
         with open(path, encoding='utf-8') as fh:
             data = yamlio.load(fh)
     except OSError as exc:
-        raise MappingError(f'--map {path}: {exc.strerror or exc}') from None
+        raise MappingError(f'<<map>> {path}: {exc.strerror or exc}') from None
     except yamlio.YAMLError as exc:
-        raise MappingError(f'--map {path}: cannot parse YAML: '
+        raise MappingError(f'<<map>> {path}: cannot parse YAML: '
                            f'{str(exc).splitlines()[0]}') from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise MappingError(f'--map {path}: expected a mapping of keys '
+        raise MappingError(f'<<map>> {path}: expected a mapping of keys '
                            f'({", ".join(Mapping.keys())}, or commands: a list of topic, kind, '
                            'index, joint)')
     out = {}
@@ -251,13 +255,13 @@ def read_map_file(path):
         for field in ('topic', 'kind', 'index', 'joint'):
             values = [e.get(field) if isinstance(e, dict) else None for e in entries]
             if field == 'topic' and not all(values):
-                raise MappingError(f'--map {path}: every entry of commands needs a topic')
+                raise MappingError(f'<<map>> {path}: every entry of commands needs a topic')
             if any(v is not None for v in values):
                 out[f'command_{field}'] = values
     for key, value in data.items():
         name = str(key).lstrip('-').replace('-', '_')
         if name not in Mapping.keys():
-            raise MappingError(f'--map {path}: unknown key {key!r} (keys: '
+            raise MappingError(f'<<map>> {path}: unknown key {key!r} (keys: '
                                f'{", ".join(Mapping.keys())})')
         out[name] = value
     return out

@@ -2,7 +2,7 @@
 Re-simulating a foreign recording: its mapped commands through the model, on a grid of steps.
 
 The grid starts at the first command's time plus the command-to-state delay
-and steps at ``--step-rate`` (default 1 kHz, or the command rate where
+and steps at ``step_rate`` (default 1 kHz, or the command rate where
 faster). The commands go through the node's rules
 (:class:`~leadscrew_sim.core.commands.CommandHold`) and act from their time on
 the grid (:mod:`.commands`). The state after step k lies at
@@ -71,7 +71,11 @@ def own_command_specs(rec):
 
 
 def find_topic(rec, name, option):
-    """Return the recorded topic ``name`` (relative names match any namespace; ours first)."""
+    """
+    Return the recorded topic ``name`` (relative names match any namespace; ours first).
+
+    ``option``: the keyword of the option that names it, for the error.
+    """
     ours = graph_name(name.lstrip('/'))
     for topic in rec.topic_types:       # the node's own name (axis/joint_states) first
         if ours != name.lstrip('/') and (topic == '/' + ours or topic.endswith('/' + ours)):
@@ -79,7 +83,7 @@ def find_topic(rec, name, option):
     for topic in rec.topic_types:
         if topic == name or topic == '/' + name.lstrip('/') or topic.endswith('/' + name):
             return topic
-    raise RunError(f"{option} {name}: no such topic in {rec.path} (topics: "
+    raise RunError(f"<<{option}>> {name}: no such topic in {rec.path} (topics: "
                    f"{', '.join(sorted(rec.topic_types))})")
 
 
@@ -119,17 +123,17 @@ class ForeignReplay:
         """Find the topics and joints, read the states and commands, set the grid."""
         m = mapping if isinstance(mapping, Mapping) else Mapping.from_args(mapping)
         self.mapping, self.path, self.rec = m, rec.path, rec
-        self.state_topic = find_topic(rec, m.state_topic or 'joint_states', '--state-topic')
+        self.state_topic = find_topic(rec, m.state_topic or 'joint_states', 'state_topic')
         stype = rec.topic_types.get(self.state_topic)
         if stype != JOINT_STATE:
-            raise RunError(f'--state-topic {self.state_topic}: type {stype!r}, expected '
+            raise RunError(f'<<state_topic>> {self.state_topic}: type {stype!r}, expected '
                            f'{JOINT_STATE}')
         specs = m.specs() if m.command_topic is not None else own_command_specs(rec)
         if not specs:
-            raise RunError('--command-topic: a foreign recording needs the command topic '
+            raise RunError('<<command_topic>>: a foreign recording needs the command topic '
                            f'(`leadscrew_sim info {rec.path}` lists the topics and the '
                            'mapping flags that fit)')
-        topics = [find_topic(rec, t, '--command-topic') for t, _k, _i, _j in specs]
+        topics = [find_topic(rec, t, 'command_topic') for t, _k, _i, _j in specs]
         self.command_topic = ', '.join(topics)
         arrays = rec.topic_arrays([self.state_topic] + topics)
         self.joints = (m.screw_joint or 'screw_joint', m.nut_joint or 'nut_joint')
@@ -137,7 +141,7 @@ class ForeignReplay:
         screw = self.joints[0] if (m.screw_joint or self.joints[0] in names) else None
         nut = self.joints[1] if (m.nut_joint or self.joints[1] in names) else None
         if screw is None and nut is None:
-            raise RunError(f'--screw-joint/--nut-joint: the states on {self.state_topic} name '
+            raise RunError(f'<<screw_joint>>/<<nut_joint>>: the states on {self.state_topic} name '
                            f'{", ".join(names) or "no joint"}; give the screw or the nut joint')
         self.states = States(self.state_topic, arrays[self.state_topic], screw, nut, rec.path)
         self.commands = CommandSet(
@@ -196,7 +200,7 @@ class ForeignReplay:
                 if span > still:
                     moved.append(f'{name} over {span:.3g} {unit}')
         if idle and moved:
-            raise RunError(f'--command-topic: {", ".join(idle)} does not move the axis, but '
+            raise RunError(f'<<command_topic>>: {", ".join(idle)} does not move the axis, but '
                            f'the states on {self.state_topic} move ({", ".join(moved)}): map '
                            'the topic that commands it (`leadscrew_sim info` lists them)')
 

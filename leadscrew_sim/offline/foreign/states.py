@@ -64,7 +64,7 @@ class States:
             if joint is None:
                 continue
             if joint not in names:
-                raise RunError(f'--{role}-joint {joint}: no such joint in the states on '
+                raise RunError(f'<<{role}_joint>> {joint}: no such joint in the states on '
                                f'{topic} (joints: {", ".join(names) or "none"})')
             j = names.index(joint)
             for name, r, array, _col, _u in SIGNALS:

@@ -1,11 +1,12 @@
 """
-What a foreign recording holds for the mapping: its JointState topics, command topics, and flags.
+What a foreign recording holds for the mapping: its JointState topics, command topics, options.
 
 ``info`` prints it: per JointState topic the joint names, which of
 position, velocity and effort they carry, and the rate of the header stamps;
 per command topic of a type the mapping reads, what it commands; then the
-mapping flags that fit, for the user to copy (the joint roles and the
-command's kind are guessed from the names, and said to be guesses).
+mapping options that fit, for the user to copy (the joint roles and the
+command's kind are guessed from the names, and said to be guesses), each
+named by its keyword, or as ``info`` names it: by its flag.
 """
 import numpy as np
 
@@ -31,8 +32,13 @@ def _role(name):
     return None
 
 
-def foreign_lines(rec):
-    """Return the lines that describe a foreign recording's topics for the mapping."""
+def marked_lines(rec):
+    """
+    Return the lines that describe a foreign recording's topics for the mapping.
+
+    Each option they propose is marked ``<<keyword>>``
+    (:func:`leadscrew_sim.offline.options.option_text` names it).
+    """
     joint_topics = [t for t, ty in sorted(rec.topic_types.items()) if ty == JOINT_STATE]
     # a state (the node's nut_position is a Float64 too) is never proposed as a command
     command_topics = [t for t, ty in sorted(rec.topic_types.items())
@@ -93,29 +99,29 @@ def foreign_lines(rec):
     if len(names) == 2 and guessed:
         screw, nut = (screw or [n for n in names if n != nut][0],
                       nut or [n for n in names if n != screw][0])
-    base = f'--state-topic {state}' + (f' --screw-joint {screw}' if screw else '') + \
-        (f' --nut-joint {nut}' if nut else '')
+    base = f'<<state_topic>> {state}' + (f' <<screw_joint>> {screw}' if screw else '') + \
+        (f' <<nut_joint>> {nut}' if nut else '')
     lines.append('mapping flags that fit (joint roles and kinds guessed from the names: check '
-                 'them; --map FILE takes the same keys):')
+                 'them; <<map>> FILE takes the same keys):')
     if not commands:
-        lines.append(f'  {base} --command-topic TOPIC   (no command topic of a type read: '
+        lines.append(f'  {base} <<command_topic>> TOPIC   (no command topic of a type read: '
                      f'{", ".join(COMMAND_TYPES)})')
     several = []
     for topic, ty, first in commands:
         kind = next((k for h, k in KIND_HINTS if h in topic.lower()), None)
         extra = ''
         if ty in (FLOAT64, MULTI_ARRAY):
-            extra = f' --command-kind {kind or "KIND"}'
+            extra = f' <<command_kind>> {kind or "KIND"}'
             if ty == MULTI_ARRAY:
                 n = len(C.decode_float64_multi_array(first))
                 index = names.index(nut) if nut in names and names.index(nut) < n else 0
-                extra += f' --command-index {index}'
+                extra += f' <<command_index>> {index}'
         elif ty == TRAJECTORY:
             cnames = C.decode_joint_trajectory(first)[1]
             joint = nut if nut in cnames else screw if screw in cnames else None
-            extra = f' --command-joint {joint}' if joint else ' --command-joint NAME'
-        lines.append(f'  {base} --command-topic {topic}{extra}')
-        several.append(f' --command-topic {topic}{extra}')
+            extra = f' <<command_joint>> {joint}' if joint else ' <<command_joint>> NAME'
+        lines.append(f'  {base} <<command_topic>> {topic}{extra}')
+        several.append(f' <<command_topic>> {topic}{extra}')
     if len(several) > 1:
         lines.append('  all of them (the controllers a switch leaves; the latest command acts):')
         lines.append(f'  {base}{"".join(several)}')

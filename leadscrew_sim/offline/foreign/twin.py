@@ -19,7 +19,7 @@ import numpy as np
 from .replay import at_times, ForeignReplay, OFFSET_SIGNALS
 from .segments import motion_segments
 from .states import COLUMNS, UNITS
-from ..options import NS
+from ..options import NS, option_text
 from ...analysis.identify import fit as ident
 from ...core.params import ScrewParams
 
@@ -131,8 +131,13 @@ def twin_comparison(source, params, mapping=None, estimate_delay=True):
                           rms, mx, segments, rep.delay, rep)
 
 
-def report_lines(comp, label=''):
-    """Return the report lines of a :class:`TwinComparison`."""
+def report_lines(comp, label='', name_of=None):
+    """
+    Return the report lines of a :class:`TwinComparison`.
+
+    ``name_of(keyword)``: the name of an option a line names (default its keyword;
+    :func:`leadscrew_sim.offline.options.option_text`).
+    """
     rep = comp.replay
     st = rep.states
     med, lo, hi = st.intervals()
@@ -142,7 +147,7 @@ def report_lines(comp, label=''):
              f'({rep.commands.ctype}, {len(rep.commands.times)} taken, '
              f'{rep.commands.skipped} non-finite skipped); {rep.n_steps} steps at '
              f'{NS / rep.dt_ns:g} Hz',
-             comp.delay.line(),
+             option_text(comp.delay.line(), name_of),
              f'{"signal":<16} {"unit":<6} {"rms diff":>12} {"max |diff|":>12} {"n":>8}']
     for name in comp.measured:
         n = int(np.count_nonzero(np.isfinite(comp.measured[name] - comp.twin[name])))

@@ -83,7 +83,7 @@ class RecordingOptions:
         Constant command-to-state delay [s]: the commands' times are shifted
         by it (default 0).
     map_file : str or None
-        A ``--map`` YAML file with these mapping keys
+        A mapping YAML file (the ``map`` option) with these mapping keys
         (:mod:`leadscrew_sim.offline.foreign.mapping`); a key set here wins.
     params : ScrewParams or None
         The axis (hand and lead) for ``following_error`` of a foreign
@@ -110,7 +110,7 @@ class RecordingOptions:
 
 
 def _check_options(o):
-    """Raise RunError for an unknown name or a band or count out of range; read --map."""
+    """Raise RunError for an unknown name or a band or count out of range; read the map file."""
     from ..foreign.mapping import Mapping
     keys = {k: getattr(o, k) for k in Mapping.keys()}
     keys['map'] = o.map_file
@@ -118,19 +118,19 @@ def _check_options(o):
     for k in Mapping.keys():
         setattr(o, k, getattr(mapping, k))
     if o.input is not None and o.input not in INPUTS:
-        raise RunError(f"--input '{o.input}' is not an input ({', '.join(INPUTS)})")
+        raise RunError(f"<<input>> '{o.input}' is not an input ({', '.join(INPUTS)})")
     if o.output not in OUTPUTS:
-        raise RunError(f"--output '{o.output}' is not an output ({', '.join(OUTPUTS)})")
+        raise RunError(f"<<output>> '{o.output}' is not an output ({', '.join(OUTPUTS)})")
     if o.command_kind is not None and o.command_kind not in _COMMAND_FIELD:
-        raise RunError(f"--command-kind '{o.command_kind}' must be torque, velocity or "
+        raise RunError(f"<<command_kind>> '{o.command_kind}' must be torque, velocity or "
                        'position')
-    for name, v in (('--fmin', o.fmin), ('--fmax', o.fmax), ('--step-rate', o.step_rate)):
+    for name, v in (('fmin', o.fmin), ('fmax', o.fmax), ('step_rate', o.step_rate)):
         if v is not None and not (math.isfinite(v) and v > 0.0):
-            raise RunError(f'{name} {v!r} must be a positive number [Hz]')
+            raise RunError(f'<<{name}>> {v!r} must be a positive number [Hz]')
     if o.fmin is not None and o.fmax is not None and not o.fmin < o.fmax:
-        raise RunError(f'--fmax {o.fmax:g} Hz must exceed --fmin {o.fmin:g} Hz')
+        raise RunError(f'<<fmax>> {o.fmax:g} Hz must exceed <<fmin>> {o.fmin:g} Hz')
     if not (isinstance(o.segments, int) and 1 <= o.segments <= 1000):
-        raise RunError(f'--segments {o.segments!r} must be a whole number in [1, 1000]')
+        raise RunError(f'<<segments>> {o.segments!r} must be a whole number in [1, 1000]')
 
 
 def _topic(rec, name):
@@ -189,7 +189,7 @@ class _Reader:
         if self.o.command_kind and self.o.command_topic:
             found = [n for n in INPUTS if INPUTS[n] == self.o.command_kind]
         if len(found) != 1:
-            raise RunError(f'{self.path}: give --input ({", ".join(INPUTS)}): '
+            raise RunError(f'{self.path}: give <<input>> ({", ".join(INPUTS)}): '
                            f'{"no" if not found else "more than one"} recorded command topic')
         return found[0]
 
@@ -263,14 +263,14 @@ def _commands(r, topic, kind):
         for i, (t, d) in enumerate(msgs):
             a = C.decode_float64_multi_array(d)
             if index >= len(a):
-                raise RunError(f'--command-index {index}: past the array of message {i} on '
+                raise RunError(f'<<command_index>> {index}: past the array of message {i} on '
                                f'{topic} ({len(a)} entries)')
             if math.isfinite(a[index]):         # a NaN command is skipped, as the node does
                 times.append(t)
                 values.append(a[index])
         return np.array(times, dtype=np.int64), np.array(values, dtype=float)
     if ctype not in (None, 'std_msgs/msg/Float64'):
-        raise RunError(f'--command-topic {topic}: type {ctype!r} is not read by freqresp '
+        raise RunError(f'<<command_topic>> {topic}: type {ctype!r} is not read by freqresp '
                        '(std_msgs/Float64, std_msgs/Float64MultiArray, sensor_msgs/JointState)')
     return (np.array([t for t, _d in msgs], dtype=np.int64),
             np.array([C.decode_float64(d) for _t, d in msgs], dtype=float))

@@ -6,7 +6,7 @@ object with the same attributes) and returns dict(responses, linear, lines):
 
 - ``file`` given: the recording's H1 and coherence
   (:func:`leadscrew_sim.offline.freqresp.recording.recording_response`, imported
-  when used), with the linear model of ``--preset`` / ``--params`` overlaid
+  when used), with the linear model of ``preset`` / ``params`` overlaid
   when one is named;
 - ``linear``: the linearised model's FRF at the operating point (sampling
   ``continuous`` by default);
@@ -42,7 +42,7 @@ def parse_amplitudes(text):
         try:
             out.append(float(item))
         except ValueError:
-            raise RunError(f"--amplitude '{item}' is not a number (give A[,A2,...] in the "
+            raise RunError(f"<<amplitude>> '{item}' is not a number (give A[,A2,...] in the "
                            "input's SI unit, each > 0)") from None
     return out
 
@@ -58,7 +58,7 @@ def _names(args):
     if loop is not None:
         return None, None, loop, _get(args, 'quantity', 'L')
     if _get(args, 'quantity') is not None:
-        raise RunError('--quantity needs --loop velocity|position')
+        raise RunError('<<quantity>> needs <<loop>> velocity|position')
     return (_get(args, 'input', 'velocity_command'), _get(args, 'output', 'motor_velocity'),
             None, None)
 
@@ -74,7 +74,7 @@ def _recording(args):
     """Return (responses, linear or None) of a recording."""
     from .recording import recording_response, RecordingOptions
     if _get(args, 'loop') is not None:
-        raise RunError('--loop: a recording gives input -> output responses only')
+        raise RunError('<<loop>>: a recording gives input -> output responses only')
     opts = RecordingOptions(
         input=_get(args, 'input'), output=_get(args, 'output', 'motor_velocity'),
         fmin=_get(args, 'fmin'), fmax=_get(args, 'fmax'), segments=_get(args, 'segments', 8),
@@ -116,7 +116,7 @@ def freqresp_run(args):
         names = _names(args)
         rate = _get(args, 'step_rate', 1000.0)
         if not (math.isfinite(rate) and rate > 0.0):
-            raise RunError(f'--step-rate {rate!r} Hz must be positive')
+            raise RunError(f'<<step_rate>> {rate!r} Hz must be positive')
         dt = 1.0 / rate
         fmin, fmax, points = (_get(args, 'fmin', 1.0), _get(args, 'fmax', 100.0),
                               _get(args, 'points', 30))

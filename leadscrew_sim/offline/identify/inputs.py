@@ -31,24 +31,24 @@ FLOOR = 'numerical floor'
 
 
 def fit_names(text):
-    """Return the parameter names of ``--fit`` (default :data:`DEFAULT_FIT`), checked."""
+    """Return the parameter names of the ``fit`` option (default :data:`DEFAULT_FIT`), checked."""
     if text is None:
         return list(ident.DEFAULT_FIT)
     names = [n.strip() for n in text.split(',') if n.strip()]
     for n in names:
         if n not in ident.FITTABLE:
-            raise RunError(f"--fit: '{n}' is not a fittable parameter (fittable: "
+            raise RunError(f"<<fit>>: '{n}' is not a fittable parameter (fittable: "
                            f"{', '.join(ident.FITTABLE)})")
     if not names or len(set(names)) != len(names):
-        raise RunError(f'--fit {text!r}: give distinct parameter names, comma separated')
+        raise RunError(f'<<fit>> {text!r}: give distinct parameter names, comma separated')
     return names
 
 
 def start_params(args, rec):
-    """Return (starting ScrewParams, its label): --preset/--params/--set, else the named preset."""
+    """Return (starting ScrewParams, its label): preset, params and set, else the named preset."""
     phys, run_ov = parse_sets(args.set)
     if run_ov:
-        raise RunError('identify --set accepts physics parameters only')
+        raise RunError('identify <<set>> accepts physics parameters only')
     if args.preset or args.params:
         params, label, _extra = load_params(args, phys)
         return params, label
@@ -66,7 +66,7 @@ def check_geometry(start, recorded):
                 getattr(start, name) != getattr(recorded, name):
             raise RunError(f'the starting set has {name}={getattr(start, name)!r}, the '
                            f'recording {getattr(recorded, name)!r}: choose the preset or '
-                           'parameter file of this axis (--preset, --params)')
+                           'parameter file of this axis (<<preset>>, <<params>>)')
 
 
 def measurements(path, data, recorded, torque_only, foreign, times=None):
@@ -77,7 +77,7 @@ def measurements(path, data, recorded, torque_only, foreign, times=None):
     leadscrew_sim recording's sensor parameters (an ideal sensor there reads
     exactly: its level is the floor); it is then hypot(noise, q / sqrt(12))
     with the quantisation step q. A foreign recording's noise is not known,
-    whatever the starting set (``--preset``, ``--params``, ``--set``) says
+    whatever the starting set (``preset``, ``params``, ``set``) says
     (a set whose level is off by more than 2 times is told): it is the
     data's estimate (:func:`data_level`): the white
     noise of the second differences, and at least q / sqrt(12) of the step

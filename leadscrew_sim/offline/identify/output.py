@@ -7,13 +7,13 @@ import re
 
 import numpy as np
 
-from ..options import RunError
+from ..options import option_text, RunError
 from ...core import yamlio
 from ...core.params import ScrewParams
 from ...core.presets import preset_names
 
 
-def write_outputs(args, out, text):
+def write_outputs(args, out, text, name_of=None):
     """
     Write the files the options of ``identify`` ask for, in this order.
 
@@ -25,34 +25,37 @@ def write_outputs(args, out, text):
         What :func:`leadscrew_sim.offline.identify.run.fit_recording` returned.
     text : str
         The report.
+    name_of : callable, optional
+        ``name_of(keyword)``: the name of an option the parameter file's
+        comments name (default its keyword; :func:`..options.option_text`).
 
     """
     if args.report:
-        write_text(args.report, text + '\n', '--report')
+        write_text(args.report, text + '\n', 'report')
     if args.output_params:
         write_params(args.output_params, out['params'], out['label'], out['res'],
-                     getattr(args, 'write_all', False))
+                     getattr(args, 'write_all', False), name_of)
     if args.plot:
         plot(args.plot, out['problem'], out['initial'], out['final'])
 
 
 def write_text(path, text, option):
-    """Write ``text`` to ``path``; a failure is a one-line error naming ``option``."""
+    """Write ``text`` to ``path``; a failure is a one-line error naming the option ``option``."""
     try:
         with open(path, 'w') as fh:
             fh.write(text)
     except OSError as exc:
-        raise RunError(f'{option} {path}: {exc.strerror or exc}') from None
+        raise RunError(f'<<{option}>> {path}: {exc.strerror or exc}') from None
 
 
-def params_document(params, label, res, write_all=False):
+def params_document(params, label, res, write_all=False, name_of=None):
     """
     Return the parameter file of a fitted set: ``/**: ros__parameters:``, exact floats.
 
     By default only the identified values are written, and those exact data
     determine (ideal sensors: no statistical interval; each marked so by a
     comment on its line), after ``preset: <label>``
-    when the starting values were a preset (so ``simulate --params`` and the
+    when the starting values were a preset (so simulate's ``params`` option and the
     node rebuild the starting set with the identified values in it); each fitted
     parameter left out is named in a comment with why (not identifiable, or the
     fit was rejected). With ``write_all`` every physics parameter but the
@@ -69,7 +72,10 @@ def params_document(params, label, res, write_all=False):
     res : leadscrew_sim.analysis.identify.fit.FitResult
         The fit (which parameters were identified).
     write_all : bool
-        Write every value (``--write-all``), not only the identified ones.
+        Write every value (the ``write_all`` option), not only the identified ones.
+    name_of : callable, optional
+        ``name_of(keyword)``: the name of an option the comments name (default
+        its keyword; :func:`..options.option_text`).
 
     """
     ident = [n for n, vd in zip(res.names, res.verdicts) if vd.identified]
@@ -93,7 +99,7 @@ def params_document(params, label, res, write_all=False):
             f' (over the preset {label})' if values.get('preset') else
             f' (the other starting values came from {label})'))
         if kept:
-            head.append('# left out, not identified (write them with --write-all):')
+            head.append('# left out, not identified (write them with <<write_all>>):')
             head += [f'#   {n}: {" ".join(why.split())}' for n, why in kept.items()]
     body = yamlio.dump({'/**': {'ros__parameters': values}}).split('\n')
     for i, line in enumerate(body):
@@ -102,7 +108,7 @@ def params_document(params, label, res, write_all=False):
             body[i] = f'{line}  # exact data: determined to the fit\'s resolution, no interval'
         elif m and write_all and m.group(1) in kept:
             body[i] = f'{line}  # not identified: {_short(kept[m.group(1)])}'
-    return '\n'.join(head + body) + '\n'
+    return option_text('\n'.join(head + body) + '\n', name_of)
 
 
 #: A parameter's line in the dumped file: its name.
@@ -114,9 +120,9 @@ def _short(reason):
     return ' '.join(reason.split(':', 1)[0].split())
 
 
-def write_params(path, params, label, res, write_all=False):
+def write_params(path, params, label, res, write_all=False, name_of=None):
     """Write the parameter file of the fitted set (:func:`params_document`)."""
-    write_text(path, params_document(params, label, res, write_all), '--output-params')
+    write_text(path, params_document(params, label, res, write_all, name_of), 'output_params')
 
 
 def plot(path, problem, initial, final):
@@ -170,6 +176,6 @@ def plot(path, problem, initial, final):
     try:
         fig.savefig(path, dpi=90)
     except OSError as exc:
-        raise RunError(f'--plot {path}: {exc.strerror or exc}') from None
+        raise RunError(f'<<plot>> {path}: {exc.strerror or exc}') from None
     finally:
         plt.close(fig)

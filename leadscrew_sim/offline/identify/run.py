@@ -10,7 +10,7 @@ explain the recording is repeated with restarts at the recording's rests
 the start, then from the start with every fitted parameter 10 % up and
 10 % down (:data:`SHIFT`); an explained fit's intervals are widened by the parametric
 bootstrap when the sensors are noisy. Starting and fixed values come from
-``--preset`` / ``--params`` / ``--set`` (by default the preset the
+``preset`` / ``params`` / ``set`` (by default the preset the
 recording names), never from the recording's parameters: those would be
 the answer.
 """
@@ -65,7 +65,7 @@ def fit_recording(args, progress=None):
     """
     names = fit_names(args.fit)
     if args.rate is not None and not (math.isfinite(args.rate) and 1.0 <= args.rate <= 1e6):
-        raise RunError(f'--step-rate {args.rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'<<step_rate>> {args.rate} Hz must lie in [1, 1e6]')
     t_wall = time.perf_counter()
     rec = open_recording(args.file)
     rec.require_ros2()
@@ -75,7 +75,7 @@ def fit_recording(args, progress=None):
     try:
         coords = ident.coordinates(names, start)
     except ValueError as exc:
-        raise RunError(f'--fit: {exc}') from None
+        raise RunError(f'<<fit>>: {exc}') from None
     problem.resolve_floor(coords)
     plan = Plan(problem, names, start, coords, args.max_nfev)
     weights = dict(problem.measurements.sigma)
@@ -391,7 +391,7 @@ def _unexplained_why(problem):
                      f'its noise level ({how})')
     return ('the fit does not explain the recording (' + '; '.join(parts) + '; no '
             'parameter set of a re-simulation adds such noise: give the sensor\'s resolution '
-            'and noise, e.g. --set scale_resolution=..., --set scale_noise=...)')
+            'and noise, e.g. <<set>> scale_resolution=..., <<set>> scale_noise=...)')
 
 
 def _reject(res, why):

@@ -1,5 +1,5 @@
 """
-``play --foxglove``: serve a recording over the Foxglove WebSocket protocol, no ROS needed.
+``play``'s ``foxglove`` option: serve a recording over Foxglove's WebSocket protocol, no ROS.
 
 The recording's channels are advertised with the schemas the file carries
 (ros2msg for a ros2 recording) and the ``cdr`` encoding; the messages go out
@@ -19,7 +19,7 @@ from .schedule import Sleeper
 
 __all__ = ['serve_recording']
 
-#: The /clock type (``--clock``).
+#: The /clock type (the ``clock`` option).
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 
 
@@ -72,7 +72,7 @@ def serve_recording(rec, args, remap, clock_enc, out=sys.stdout):
         try:
             channels['/clock'] = (CLOCK_TYPE, 'ros2msg', ros2msg_definition(CLOCK_TYPE).encode())
         except DefinitionNotFoundError as exc:
-            raise RunError(f'--clock: {exc}') from None
+            raise RunError(f'<<clock>>: {exc}') from None
     server = LiveServer(channels, args.foxglove_host, args.foxglove, name='leadscrew_sim play',
                         latched=latched)      # ServeError: the port is in use
     try:

@@ -78,7 +78,7 @@ def _resim(args):
     """Open the recording, then re-simulate it (or compare it with its twin)."""
     phys_ov, run_ov = parse_sets(args.set)
     if run_ov:
-        raise RunError('resim --set accepts physics parameters only')
+        raise RunError('resim <<set>> accepts physics parameters only')
     rec = open_recording(args.file, load_messages=False)
     mapping = Mapping.from_args(args)
     if mapping.given or args.preset or args.params or rec.record(PARAMS_RECORD) is None:
@@ -111,7 +111,7 @@ def output_path(source, output=None):
     source : str
         The recording re-simulated (MCAP file or bag directory).
     output : str, optional
-        The path the user gave (``--output``).
+        The path the user gave (the ``output`` option).
 
     Raises
     ------
@@ -123,18 +123,18 @@ def output_path(source, output=None):
     out = output or str(src.with_name(src.name[:-5] if src.name.endswith('.mcap')
                                       else src.name)) + '.resim.mcap'
     if os.path.isdir(out):
-        raise RunError(f'--output {out} is a directory')
+        raise RunError(f'<<output>> {out} is a directory')
     if os.path.abspath(out) == os.path.abspath(source):
-        raise RunError(f'--output {out} would overwrite the input file')
+        raise RunError(f'<<output>> {out} would overwrite the input file')
     return out
 
 
 def _twin(args, rec, mapping, phys_ov):
-    """Compare a foreign recording with its twin (``--preset``/``--params``)."""
+    """Compare a foreign recording with its twin (the ``preset`` or ``params`` option)."""
     rec.require_ros2()
     if not (args.preset or args.params):
         raise RunError(f'{args.file}: not a leadscrew_sim recording: give the twin\'s '
-                       'parameters (--preset NAME or --params FILE) and the mapping flags '
+                       'parameters (<<preset>> NAME or <<params>> FILE) and the mapping flags '
                        f'(`leadscrew_sim info {args.file}` prints those that fit)')
     params, label, _extra = load_params(args, phys_ov)
     return TwinRun(twin_comparison(rec, params, mapping), label)

@@ -1,5 +1,5 @@
 """
-Where a recording left the axis's ageing: the start of ``simulate --ageing-from``.
+Where a recording left the axis's ageing: the start of simulate's ``ageing_from`` option.
 
 A recording of leadscrew_sim ends with the ageing state in its
 :data:`~leadscrew_sim.io.run_file.AGEING_END_RECORD` (simulate, and the node

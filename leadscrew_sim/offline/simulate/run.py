@@ -6,7 +6,7 @@ when it changes) logged at t_k, then the states logged at t_k + dt: the
 node's rule (:data:`leadscrew_sim.core.commands.COMMAND_LOG_TIME`), so
 ``resim`` feeds the model the very same doubles and reproduces the states
 bit for bit. The robot description and /tf_static come first (at t_0 = 0),
-each tick's /tf after its states (then /clock with ``--clock``).
+each tick's /tf after its states (then /clock with the ``clock`` option).
 :func:`simulate` sets a run up from the options of ``leadscrew_sim
 simulate`` and :func:`simulate_loop` runs it block by block: a torque block
 through :mod:`.torque_blocks`, a drive block through :mod:`.drive_inputs`,
@@ -78,7 +78,8 @@ def simulate(args, warn):
         The options of ``leadscrew_sim simulate`` (``args.duration`` is set
         to the run's duration [s] when not given).
     warn : callable
-        Told (a one-line text) of fault-schedule changes after the end of the run.
+        Told (a one-line text) of fault-schedule changes after the end of the run; the
+        text names an option as ``<<keyword>>`` (:func:`..options.option_text`).
 
     Returns
     -------
@@ -105,9 +106,9 @@ def _simulate(args, warn):
     if args.duration is None:
         args.duration = profile.duration if profile is not None else 1.0
     if not (math.isfinite(rate) and 1.0 <= rate <= 1e6):
-        raise RunError(f'--update-rate {rate} Hz must lie in [1, 1e6]')
+        raise RunError(f'<<update_rate>> {rate} Hz must lie in [1, 1e6]')
     if not (math.isfinite(args.duration) and args.duration > 0):
-        raise RunError(f'--duration {args.duration} s must be > 0')
+        raise RunError(f'<<duration>> {args.duration} s must be > 0')
     prefix = run_ov.get('joint_prefix', extra.get('joint_prefix', ''))
     dt_ns = int(round(NS / rate))
     n_steps = int(round(args.duration * NS / dt_ns))
@@ -120,7 +121,7 @@ def _simulate(args, warn):
     schedule = read_schedule(args.faults, params, dt_ns) if args.faults else []
     late = [k for k, _changes in schedule if k >= n_steps]
     if late:
-        warn(f'--faults {args.faults}: {len(late)} change(s) at or after the end of the run '
+        warn(f'<<faults>> {args.faults}: {len(late)} change(s) at or after the end of the run '
              f'({args.duration:g} s) have no effect')
     log = EventLog(params, dt_ns)
     if schedule and schedule[0][0] == 0:   # changes at t = 0 are the run's parameters

@@ -1,5 +1,5 @@
 """
-The fault schedule of ``simulate --faults FILE``: parameter changes at given times.
+The fault schedule of simulate's ``faults`` option: parameter changes at given times.
 
 Each line is ``time,parameter,value`` (s, a physics or ``fault.*`` parameter,
 a YAML scalar); ``#`` starts a comment and a first line that is not a time
@@ -42,7 +42,7 @@ def read_schedule(path, params, dt_ns):
     try:
         fh = open(path, newline='')
     except OSError as exc:
-        raise RunError(f'--faults {path}: {exc.strerror or exc}') from None
+        raise RunError(f'<<faults>> {path}: {exc.strerror or exc}') from None
     names = set(ScrewParams.names())
     steps = {}
     last_t = -math.inf
@@ -53,7 +53,7 @@ def read_schedule(path, params, dt_ns):
             if not text:
                 continue
             cells = [c.strip() for c in text.split(',')]
-            where = f'--faults {path}, line {lineno}'
+            where = f'<<faults>> {path}, line {lineno}'
             header, first = first, False
             try:
                 t = float(cells[0])

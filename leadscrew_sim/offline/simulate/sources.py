@@ -101,7 +101,7 @@ class TorqueSource:
 
 class MoveController:
     """
-    PID position control of the nut toward a target along a ramp reference (``--profile move``).
+    PID position control of the nut toward a target along a ramp reference (the profile ``move``).
 
     Reference: from the initial position to ``target`` at ``speed`` m/s.
     Gains from the effective moving mass M (payload + reflected inertia) with
@@ -164,13 +164,13 @@ class MoveController:
 
 
 def excite_profile(args, params):
-    """Return the identification profile of ``--excite`` (None without it)."""
+    """Return the identification profile of the ``excite`` option (None without it)."""
     if getattr(args, 'excite', None) is None:
         if getattr(args, 'excite_opt', None):
-            raise RunError('--excite-opt needs --excite PROFILE')
+            raise RunError('<<excite_opt>> needs <<excite>> PROFILE')
         return None
     from ...analysis.excitation.profiles import make_profile
-    return make_profile(args.excite, params, **parse_options(args.excite_opt, '--excite-opt'))
+    return make_profile(args.excite, params, **parse_options(args.excite_opt, 'excite_opt'))
 
 
 def make_torque_source(args, params, profile=None):
@@ -179,12 +179,12 @@ def make_torque_source(args, params, profile=None):
 
     x is the nut position [m], v the motor velocity as nut velocity [m/s];
     ``fn.needs_state`` marks a closed loop (stepped tick by tick).
-    ``profile``: the ``--excite`` profile, a torque input here.
+    ``profile``: the ``excite`` option's profile, a torque input here.
     """
-    chosen = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv),
-                             ('--profile', args.profile)) if v is not None]
+    chosen = [n for n, v in (('<<torque>>', args.torque), ('<<torque_csv>>', args.torque_csv),
+                             ('<<profile>>', args.profile)) if v is not None]
     if profile is not None:
-        chosen.append('--excite')
+        chosen.append('<<excite>>')
     if len(chosen) > 1:
         raise RunError(f'give only one torque input, not {" and ".join(chosen)}')
     if profile is not None:
@@ -194,12 +194,12 @@ def make_torque_source(args, params, profile=None):
         return TorqueSource(held, held.block), f'torque_csv={args.torque_csv}'
     if args.profile is None:
         c = float(args.torque or 0.0)
-        check_finite('--torque', c)
+        check_finite('torque', c)
         return TorqueSource(lambda t: c, lambda ts: np.full(len(ts), c)), f'torque={c}'
     if args.profile == 'move':
         return _move_source(args, params)
     amp = 0.5 * params.max_torque if args.amplitude is None else args.amplitude
-    check_finite('--amplitude', amp)
+    check_finite('amplitude', amp)
     f = args.frequency
     if args.profile == 'step':
         t_step = args.step_time
@@ -216,10 +216,10 @@ def make_torque_source(args, params, profile=None):
 
 
 def _move_source(args, params):
-    """Return the closed-loop torque source of ``--profile move`` and its description."""
+    """Return the closed-loop torque source of the profile ``move`` and its description."""
     target = args.target if args.target is not None else params.initial_position + 0.01
     if not params.stroke_min <= target <= params.stroke_max:
-        raise RunError(f'--target {target} m lies outside the stroke '
+        raise RunError(f'<<target>> {target} m lies outside the stroke '
                        f'[{params.stroke_min}, {params.stroke_max}] m')
     ctl = MoveController(params, target, args.speed)
 
@@ -233,16 +233,16 @@ def _move_source(args, params):
 def make_force_source(args):
     """Return ``fn(t) -> external force [N]`` (None: no force input) and a description."""
     if args.force is not None and args.force_csv is not None:
-        raise RunError('give only one of --force and --force-csv')
+        raise RunError('give only one of <<force>> and <<force_csv>>')
     if args.force_csv is not None:
         times, values = read_csv_series(args.force_csv, 'force')
         for t, v in zip(times, values):
             _check_force(f'force CSV {args.force_csv}, t={t} s', v)
         return Held(times, values), f'force_csv={args.force_csv}'
     if args.force is not None:
-        check_finite('--force', args.force)
+        check_finite('force', args.force)
         c = float(args.force)
-        _check_force('--force', c)
+        _check_force('<<force>>', c)
         return Held([], [], before=c), f'force={c}'
     return None, ''
 
@@ -342,7 +342,7 @@ def make_drive_source(args, params, profile=None):
     """
     Return the drive input of simulate as (fn, topic, description), or None for a torque input.
 
-    ``profile``: the ``--excite`` profile (a drive input when it commands
+    ``profile``: the ``excite`` option's profile (a drive input when it commands
     velocity or position; the commission profile is returned as it is, with
     topic ``mixed``: each part on its own command topic).
 
@@ -351,27 +351,29 @@ def make_drive_source(args, params, profile=None):
     ``position_command``, or ``joint_commands`` (nut joint position and velocity
     feed-forward, for the trapezoidal move).
     """
-    chosen = [n for n, v in (('--velocity', args.velocity), ('--velocity-csv', args.velocity_csv),
-                             ('--position', args.position), ('--position-csv', args.position_csv))
+    chosen = [n for n, v in (('<<velocity>>', args.velocity),
+                             ('<<velocity_csv>>', args.velocity_csv),
+                             ('<<position>>', args.position),
+                             ('<<position_csv>>', args.position_csv))
               if v is not None]
     if profile is not None and profile.kind == 'mixed':     # commission: a part per command
-        others = chosen + [n for n, v in (('--torque', args.torque),
-                                          ('--torque-csv', args.torque_csv),
-                                          ('--profile', args.profile)) if v is not None]
+        others = chosen + [n for n, v in (('<<torque>>', args.torque),
+                                          ('<<torque_csv>>', args.torque_csv),
+                                          ('<<profile>>', args.profile)) if v is not None]
         if others:
-            raise RunError(f'give only one input, not --excite and {" and ".join(others)}')
+            raise RunError(f'give only one input, not <<excite>> and {" and ".join(others)}')
         return profile, 'mixed', profile.describe()
     if args.profile == 'trapezoid':
-        chosen.append('--profile trapezoid')
+        chosen.append('<<profile>> trapezoid')
     if profile is not None and profile.kind != 'torque':
-        chosen.append('--excite')
-    torque = [n for n, v in (('--torque', args.torque), ('--torque-csv', args.torque_csv))
+        chosen.append('<<excite>>')
+    torque = [n for n, v in (('<<torque>>', args.torque), ('<<torque_csv>>', args.torque_csv))
               if v is not None]
     if args.profile not in (None, 'trapezoid'):
-        torque.append(f'--profile {args.profile}')
+        torque.append(f'<<profile>> {args.profile}')
     if params.drive_type == 'stepper':
         if profile is not None and profile.kind == 'torque':
-            torque.append('--excite')
+            torque.append('<<excite>>')
         if torque:
             raise RunError(f'{" and ".join(torque)}: a stepper axis (drive_type stepper) takes '
                            'position and velocity inputs only; torque inputs are refused')
@@ -389,12 +391,12 @@ def make_drive_source(args, params, profile=None):
         return source, profile.topic, profile.describe()
     if args.velocity is not None:
         c = float(args.velocity)
-        check_finite('--velocity', c)
+        check_finite('velocity', c)
         return DriveSource(None, c), 'velocity_command', f'velocity={c}'
     if args.position is not None:
         c = float(args.position)
-        check_finite('--position', c)
-        _check_stroke('--position', c, params)
+        check_finite('position', c)
+        _check_stroke('<<position>>', c, params)
         return DriveSource(c, None), 'position_command', f'position={c}'
     if args.velocity_csv is not None:
         held = Held(*read_csv_series(args.velocity_csv, 'velocity'))
@@ -408,11 +410,11 @@ def make_drive_source(args, params, profile=None):
         return (DriveSource(held, None), 'position_command',
                 f'position_csv={args.position_csv}')
     target = args.target if args.target is not None else params.initial_position + 0.01
-    _check_stroke('--target', target, params)
-    for name, value in (('--speed', args.speed), ('--accel', args.accel)):
+    _check_stroke('<<target>>', target, params)
+    for name, value in (('speed', args.speed), ('accel', args.accel)):
         check_finite(name, value)
         if not value > 0:
-            raise RunError(f'{name} {value} must be > 0')
+            raise RunError(f'<<{name}>> {value} must be > 0')
     move = Trapezoid(params.initial_position, target, args.speed, args.accel)
     return move, 'joint_commands', (f'profile=trapezoid target={target} speed={args.speed} '
                                     f'accel={args.accel}')
