@@ -72,6 +72,8 @@ def play_shows(ctx):
     a, b = ctx.windows['reversals']
     b0 = float(ctx.calibrated.backlash)
     added = min(max(b0, LEAST_ADDED), 0.9 * float(ctx.calibrated.pitch) - b0)
+    if added <= 0.0:            # a play near the pitch already: let the fit judge it
+        return True, math.nan
     xs = []
     for play in (b0, b0 + added):
         cols, tt = ctx.axis.resimulate(
@@ -111,9 +113,9 @@ def fit_backlash(ctx, section):
             'window': [0.0, ctx.windows['reversals'][1]], 'wall_s': None,
             'held': {n: float(getattr(ctx.calibrated, n)) for n in FIT}}
         section['cannot'].append(f'backlash: not identified on the reversals: more play moves '
-                                 f'the twin\'s nut there by {per:.3g} m per m (RMS); a vertical '
-                                 'loaded axis keeps the nut on one flank, so the play does not '
-                                 'show; it keeps its starting value')
+                                 f'the twin\'s nut there by {per:.3g} m per m (RMS), as when a '
+                                 'load keeps the nut on one flank (a vertical axis); it keeps '
+                                 'its starting value')
         return
     _a, b = ctx.windows['reversals']
     path = os.path.join(ctx.work, 'backlash_window.mcap')
