@@ -71,3 +71,25 @@ def ros():
     r = Ros()
     yield r
     r.close()
+
+
+# `make test` runs the suite in two parts: the tests marked `alone` by themselves, after the
+# others have run in two worker processes (pytest-xdist). Alone are the tests that start ROS
+# nodes, a ros2_control stack, a live server or a browser, or bound a wall time: a second
+# worker on the same two cores would stretch their timing, not their results.
+ALONE_DIRS = ('ros', 'ros2_control')
+ALONE_FILES = {'package/test_readme.py', 'package/test_numba_cache.py',
+               'analysis/test_stability_grid.py', 'cli/test_play_foxglove.py'}
+ALONE_FIXTURES = {'run_exe', 'ros', 'r2c_stack', 'axis'}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests that run by themselves (`alone`; see ALONE_DIRS)."""
+    for item in items:
+        try:
+            rel = Path(str(item.path)).resolve().relative_to(HERE).as_posix()
+        except ValueError:
+            continue
+        if (rel.split('/')[0] in ALONE_DIRS or rel in ALONE_FILES
+                or ALONE_FIXTURES & set(item.fixturenames)):
+            item.add_marker(pytest.mark.alone)

@@ -231,6 +231,7 @@ def _parse(text):
     return [(int(m[1]), float(m[2])) for m in found if m]
 
 
+@pytest.mark.alone     # times a child process against its flush interval
 def test_sigkill_loses_at_most_flush_interval(tmp_path):
     path = tmp_path / 'killed.mcap'
     proc, written = _start_child(tmp_path, path, 'kill')

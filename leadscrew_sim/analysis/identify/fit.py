@@ -236,6 +236,22 @@ class FitResult:
         return self.verdicts[self.names.index(name)]
 
 
+#: The grid of the coordinates z that every re-simulation of a fit is made at [z units]: 2^-30,
+#: about 1e-9 (z is a value over its typical size, or its logarithm: about 1e-9 of the value).
+#: least_squares' steps come out of an SVD and BLAS sums whose last bits differ with the
+#: OpenBLAS kernel (as with the machine); on a rough cost (a breakaway one step earlier)
+#: those bits would steer the fit to another local minimum. On the grid, points that differ
+#: in their last bits are one point, re-simulated to the same bits, so the path of a fit
+#: does not depend on the kernel. The grid lies 300 times below the narrowest interval
+#: the tests meet (3e-7 of the value) and far below the Jacobians' steps (1e-5 and more).
+Z_GRID = 2.0 ** -30
+
+
+def on_grid(z):
+    """Return the coordinates ``z`` rounded to the nearest point of :data:`Z_GRID`."""
+    return np.round(np.asarray(z, dtype=float) / Z_GRID) * Z_GRID
+
+
 class _Counted:
     """The residual function in z coordinates, flattened, counting its calls."""
 
@@ -247,7 +263,7 @@ class _Counted:
 
     def values(self, z):
         vals = dict(self.fixed)
-        vals.update({c.name: c.to_value(zi) for c, zi in zip(self.coords, z)})
+        vals.update({c.name: c.to_value(zi) for c, zi in zip(self.coords, on_grid(z))})
         return vals
 
     def __call__(self, z):
@@ -356,6 +372,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         first = _round == 0
         res, z = _stages(fun, active, z0, opts, horizons if first else None, scan and first,
                          rescan, profile and first)
+        z = on_grid(z)      # the point that was re-simulated
         r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints, exact)
         nfev, message = nfev + counted, res.message
         if all(v.fitted for v in verdicts) or _round == rounds - 1:
