@@ -27,7 +27,7 @@ import numpy as np
 
 from ...core.params import ScrewParams
 from . import data as V
-from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
+from .search import (local_fit, on_grid, profiled, restart_fit, scanned, SCAN_ABOVE,
                      SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
@@ -234,22 +234,6 @@ class FitResult:
 
         """
         return self.verdicts[self.names.index(name)]
-
-
-#: The grid of the coordinates z that every re-simulation of a fit is made at [z units]: 2^-30,
-#: about 1e-9 (z is a value over its typical size, or its logarithm: about 1e-9 of the value).
-#: least_squares' steps come out of an SVD and BLAS sums whose last bits differ with the
-#: OpenBLAS kernel (as with the machine); on a rough cost (a breakaway one step earlier)
-#: those bits would steer the fit to another local minimum. On the grid, points that differ
-#: in their last bits are one point, re-simulated to the same bits, so the path of a fit
-#: does not depend on the kernel. The grid lies 300 times below the narrowest interval
-#: the tests meet (3e-7 of the value) and far below the Jacobians' steps (1e-5 and more).
-Z_GRID = 2.0 ** -30
-
-
-def on_grid(z):
-    """Return the coordinates ``z`` rounded to the nearest point of :data:`Z_GRID`."""
-    return np.round(np.asarray(z, dtype=float) / Z_GRID) * Z_GRID
 
 
 class _Counted:
