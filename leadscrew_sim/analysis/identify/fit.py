@@ -27,8 +27,8 @@ import numpy as np
 
 from ...core.params import ScrewParams
 from . import data as V
-from .search import (local_fit, on_grid, profiled, restart_fit, scanned, SCAN_ABOVE,
-                     SearchOptions, spread)
+from .search import (local_fit, on_grid, profiled, restart_fit, scanned, start_on_grid,
+                     SCAN_ABOVE, SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                    sensor_sigma, SIGNALS)
@@ -150,7 +150,9 @@ def coordinates(names, params, fixed_bounds=None):
                              f'[{lo!r}, {hi!r}]')
         if log and v0 <= 0.0:
             raise ValueError(f'starting value {name}={v0!r} must be > 0')
-        scale = v0 if log else (abs(v0) if v0 != 0.0 else typ)
+        # the scale from the start rounded: the same for starts that differ in their last bits
+        s0 = start_on_grid(v0)
+        scale = s0 if log else (abs(s0) if s0 != 0.0 else typ)
         out.append(Coordinate(name, v0, lo, hi, log, scale, typ))
     return out
 

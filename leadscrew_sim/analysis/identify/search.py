@@ -68,6 +68,22 @@ def on_grid(z):
     return np.round(np.asarray(z, dtype=float) / Z_GRID) * Z_GRID
 
 
+def start_on_grid(v):
+    """
+    Return the starting value ``v`` rounded to 30 significant bits (a relative grid of 2^-30).
+
+    A fit's coordinates are scaled by its starting values. A start computed
+    from an interval (the refits of the bootstrap and of the recording start
+    two half-widths off the fit) differs in its last bits with the kernel, and
+    a scale that did would carry them into every value the fit re-simulates,
+    grid or not: the scale is the start rounded so.
+    """
+    if v == 0.0 or not math.isfinite(v):
+        return v
+    m, e = math.frexp(v)
+    return math.ldexp(round(m * 2.0 ** 30), e - 30)
+
+
 def local_fit(fun, z, opts):
     """
     Return scipy's bounded local least-squares fit (``trf``, z unscaled) of ``fun`` from ``z``.
