@@ -144,77 +144,21 @@ def resolution(problem, res, names, start, coords, max_nfev, bounds):
     stalled = _stalled(np.array(starts), np.array(ends), np.array(res.values)) & identified
     problem.resolution = {c.name: float(off) for c, off, s in zip(coords, offsets, stalled) if s}
     ceiling = _cost(res) * (1.0 + _cost_spread(res))     # ends the data do not rank below
-    reach = _reach([e for e, cost in zip(ends, costs) if cost <= ceiling], res.values)
-    along = np.zeros(len(res.values))
-    if getattr(problem, 'torque_only', False):
-        points, counted = _profile_rivals(problem, res, start, coords, max_nfev, bounds, ceiling)
-        along, nfev = _reach(points, res.values), nfev + counted
+    rivals = [e for e, cost in zip(ends, costs) if cost <= ceiling]
+    reach = (np.max(np.abs(np.array(rivals) - np.array(res.values)), axis=0) if rivals
+             else np.zeros(len(res.values)))
     verdicts = list(res.verdicts)
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
         half = 0.5 * (vd.upper - vd.lower)
         if stalled[i] and offsets[i] > half:
             verdicts[i] = _widened(vd, v, c, float(offsets[i]), vd.std, 'recording')
-        elif vd.identified and max(reach[i], along[i]) > half:
-            verdicts[i] = _widened(vd, v, c, float(max(reach[i], along[i])), vd.std,
-                                   'profile' if along[i] > reach[i] else 'reach')
+        elif vd.identified and reach[i] > half:
+            verdicts[i] = _widened(vd, v, c, float(reach[i]), vd.std, 'reach')
     values = [v if vd.identified else v0
               for v, v0, vd in zip(res.values, res.initial, verdicts)]
     return dataclasses.replace(res, values=values, lower=[vd.lower for vd in verdicts],
                                upper=[vd.upper for vd in verdicts], verdicts=verdicts,
                                nfev=nfev)
-
-
-def _reach(points, values):
-    """Return per parameter the largest distance of ``points`` (rows of values) from ``values``."""
-    if not len(points):
-        return np.zeros(len(values))
-    return np.max(np.abs(np.array(points, dtype=float) - np.array(values, dtype=float)), axis=0)
-
-
-#: The profile of a log-scaled parameter in a torque-mode fit: PROFILE_POINTS values across a
-#: factor PROFILE_SPAN either way of the fit, each with the other parameters fitted locally.
-PROFILE_SPAN, PROFILE_POINTS = 4.0, 13
-
-
-def _profile_rivals(problem, res, start, coords, max_nfev, bounds, ceiling):
-    """
-    Return the points of each identified log parameter's profile that the data do not rank below.
-
-    In torque mode the cost is made by breakaways and stops, each in a whole
-    step: along the valley where the Stribeck velocity trades against mu_s,
-    local minima lie apart by more than the intervals, with costs the noise
-    does not rank (tr12x3's torque steps, seed 11: the fit at 1.17 mm/s and
-    another minimum at 4.7 mm/s within 9 % of its cost, the truth at 1.15
-    mm/s lower than both). Neither the synthetic refits nor the refits from
-    off the fit leave their basin. The profile does: each grid value of the
-    log parameter, the other identified parameters fitted locally from the
-    fit (the held ones at their values); a point whose cost is at most
-    ``ceiling`` is a rival. Returns (rows of values in the order of
-    ``res.names``, nfev). The re-simulations of a torque run are short and
-    have no drive loop, so this costs a few seconds.
-    """
-    fitted = dict(zip(res.names, res.values))
-    free = [c.name for c, vd in zip(coords, res.verdicts) if vd.identified]
-    points, nfev = [], 0
-    for c, v, vd in zip(coords, res.values, res.verdicts):
-        if not (c.log and vd.identified) or len(free) < 2:
-            continue
-        others = [n for n in free if n != c.name]
-        held = {n: x for n, x in fitted.items() if n not in others}
-        for f in np.exp(np.linspace(-np.log(PROFILE_SPAN), np.log(PROFILE_SPAN), PROFILE_POINTS)):
-            x = min(c.upper, max(c.lower, v * f))
-            if x == v:
-                continue
-            at = ScrewParams.from_dict({n: fitted[n] for n in others}, base=start)
-            refit = ident.fit(problem.residuals, ident.coordinates(others, at, bounds),
-                              fixed=dict(held, **{c.name: x}), max_nfev=max_nfev, rounds=1,
-                              scan=False, jac_steps=problem.jac_steps)
-            nfev += refit.nfev
-            if _cost(refit) <= ceiling:
-                row = dict(held, **dict(zip(refit.names, refit.values)))
-                row[c.name] = x
-                points.append([row[n] for n in res.names])
-    return points, nfev
 
 
 def _cost(res):
@@ -338,14 +282,7 @@ def _widened(vd, v, c, hw, s_b, stalled=''):
     lo, hi = max(c.lower, v - hw), min(c.upper, v + hw)
     rel = 0.5 * (hi - lo) / max(abs(v), c.typical)
     ok = bool(rel <= REL_MAX)
-    if stalled == 'profile':
-        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (fits along a log-scaled '
-               'parameter\'s profile, across a factor 4, ended that far from it at costs the '
-               'data do not rank above the fit\'s)' if ok else
-               f'not identifiable: fits along a log-scaled parameter\'s profile, across a '
-               f'factor 4, ended +-{100 * rel:.3g} % from the fit at costs the data do not '
-               'rank above the fit\'s: the recording does not single out a value closer')
-    elif stalled == 'reach':
+    if stalled == 'reach':
         why = (f'identified: 95 % interval +-{100 * rel:.3g} % (refits of the recording '
                'started off the fit on either side ended that far from it: the recording\'s '
                'cost does not single out a value closer than that)' if ok else

@@ -4,9 +4,8 @@ Verdicts conditional on what is held: refits with a held parameter across its pl
 A fitted parameter judged not identifiable keeps its starting value, a
 guess; the others were fitted with it there, and their intervals assume it
 is right. :func:`conditional` refits the recording with each held parameter
-at its start, at the ends of its plausible range (its fitting bounds, or
-+-:data:`PLAUSIBLE` of the start where that is narrower) and halfway to
-each end, the others free. A
+at its start and at the ends of its plausible range (its fitting bounds, or
++-:data:`PLAUSIBLE` of the start where that is narrower), the others free. A
 parameter the refits move by more than its own interval gets its interval
 widened to cover the moves (or, past the bar of :data:`.data.REL_MAX`, the
 verdict not identifiable), so that no interval misses the truth because a
@@ -75,12 +74,7 @@ def conditional(residuals, res, coords, start, *, max_nfev=None, jac_steps=None,
         c = coords[h]
         ends = plausible_range(c)
         runs = []
-        # the ends and the halfway points: a refit's move need not grow monotonically with the
-        # held value (the rough cost of a breakaway run: tr12x3's breakaway, seed 7, moved
-        # mu_k by -0.0001 % and +0.40 % with the Stribeck velocity at 0.5 and 1.5 mm/s, and
-        # by -0.028 % at 0.75 mm/s, where the truth's -0.019 % lies)
-        held_at = (ends[0], 0.5 * (c.initial + ends[0]), 0.5 * (c.initial + ends[1]), ends[1])
-        for v_held in (c.initial,) + held_at:
+        for v_held in (c.initial,) + tuple(ends):
             base = ScrewParams.from_dict({**dict(zip(res.names, values)), c.name: v_held},
                                          base=start)
             refit = ident.fit(residuals, ident.coordinates(names, base, bounds),
@@ -91,7 +85,6 @@ def conditional(residuals, res, coords, start, *, max_nfev=None, jac_steps=None,
         # the moves from the reported values: the refit at the start too (the others may
         # have been fitted with the held one elsewhere before its verdict held it)
         moves = {n: [run[k] - values[free[k]] for run in runs] for k, n in enumerate(names)}
-        at_text = ', '.join(f'{x:.6g}' for x in held_at[:-1]) + f' and {held_at[-1]:.6g}'
         said = []
         for k, i in enumerate(free):
             vd, v = verdicts[i], values[i]
@@ -99,13 +92,13 @@ def conditional(residuals, res, coords, start, *, max_nfev=None, jac_steps=None,
             size = max(abs(v), coords[i].typical)
             rel_move = max(abs(lo_move), abs(hi_move)) / size
             cond = (f'conditional on {c.name} held at {c.initial:.6g} (refits with it at '
-                    f'{at_text} move it by {100 * lo_move / size:+.3g} % '
+                    f'{ends[0]:.6g} and {ends[1]:.6g} move it by {100 * lo_move / size:+.3g} % '
                     f'and {100 * hi_move / size:+.3g} %)')
             said.append(f'{names[k]} {100 * lo_move / size:+.3g} % / '
                         f'{100 * hi_move / size:+.3g} %')
             verdicts[i] = _conditioned(vd, v, lo_move, hi_move, size, rel_move, cond)
         notes.append(f'conditional on {c.name} held at {c.initial:.6g}: refits with it at '
-                     f'{at_text} moved ' + ', '.join(said))
+                     f'{ends[0]:.6g} and {ends[1]:.6g} moved ' + ', '.join(said))
     lower = [vd.lower if vd.identified else math.nan for vd in verdicts]
     upper = [vd.upper if vd.identified else math.nan for vd in verdicts]
     values = [v if vd.fitted else v0 for v, v0, vd in zip(values, res.initial, verdicts)]

@@ -27,8 +27,8 @@ import numpy as np
 
 from ...core.params import ScrewParams
 from . import data as V
-from .search import (local_fit, on_grid, profiled, restart_fit, scanned, start_on_grid,
-                     SCAN_ABOVE, SearchOptions, spread)
+from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
+                     SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
                    sensor_sigma, SIGNALS)
@@ -150,9 +150,7 @@ def coordinates(names, params, fixed_bounds=None):
                              f'[{lo!r}, {hi!r}]')
         if log and v0 <= 0.0:
             raise ValueError(f'starting value {name}={v0!r} must be > 0')
-        # the scale from the start rounded: the same for starts that differ in their last bits
-        s0 = start_on_grid(v0)
-        scale = s0 if log else (abs(s0) if s0 != 0.0 else typ)
+        scale = v0 if log else (abs(v0) if v0 != 0.0 else typ)
         out.append(Coordinate(name, v0, lo, hi, log, scale, typ))
     return out
 
@@ -249,7 +247,7 @@ class _Counted:
 
     def values(self, z):
         vals = dict(self.fixed)
-        vals.update({c.name: c.to_value(zi) for c, zi in zip(self.coords, on_grid(z))})
+        vals.update({c.name: c.to_value(zi) for c, zi in zip(self.coords, z)})
         return vals
 
     def __call__(self, z):
@@ -358,7 +356,6 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         first = _round == 0
         res, z = _stages(fun, active, z0, opts, horizons if first else None, scan and first,
                          rescan, profile and first)
-        z = on_grid(z)      # the point that was re-simulated
         r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints, exact)
         nfev, message = nfev + counted, res.message
         if all(v.fitted for v in verdicts) or _round == rounds - 1:

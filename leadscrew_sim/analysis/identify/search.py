@@ -50,40 +50,6 @@ class SearchOptions:
         return dataclasses.replace(self, **changes)
 
 
-#: The grid of the coordinates z that every re-simulation of a fit is made at [z units]: 2^-30,
-#: about 1e-9 (z is a value over its typical size, or its logarithm: about 1e-9 of the value).
-#: least_squares' steps come out of an SVD and BLAS sums whose last bits differ with the
-#: OpenBLAS kernel (as with the machine); on a rough cost (a breakaway one step earlier)
-#: those bits would steer the fit to another local minimum. On the grid, points that differ
-#: in their last bits are one point, re-simulated to the same bits, and every local fit
-#: starts on the grid (a start computed from an interval differs in its last bits too), so
-#: the path of a fit does not depend on the kernel. The grid lies 300 times below the
-#: narrowest interval the tests meet (3e-7 of the value) and far below the Jacobians' steps
-#: (1e-5 and more).
-Z_GRID = 2.0 ** -30
-
-
-def on_grid(z):
-    """Return the coordinates ``z`` rounded to the nearest point of :data:`Z_GRID`."""
-    return np.round(np.asarray(z, dtype=float) / Z_GRID) * Z_GRID
-
-
-def start_on_grid(v):
-    """
-    Return the starting value ``v`` rounded to 30 significant bits (a relative grid of 2^-30).
-
-    A fit's coordinates are scaled by its starting values. A start computed
-    from an interval (the refits of the bootstrap and of the recording start
-    two half-widths off the fit) differs in its last bits with the kernel, and
-    a scale that did would carry them into every value the fit re-simulates,
-    grid or not: the scale is the start rounded so.
-    """
-    if v == 0.0 or not math.isfinite(v):
-        return v
-    m, e = math.frexp(v)
-    return math.ldexp(round(m * 2.0 ** 30), e - 30)
-
-
 def local_fit(fun, z, opts):
     """
     Return scipy's bounded local least-squares fit (``trf``, z unscaled) of ``fun`` from ``z``.
@@ -93,13 +59,12 @@ def local_fit(fun, z, opts):
     fun : callable
         z -> the flattened weighted residuals.
     z : numpy.ndarray
-        The starting point (moved to the nearest point of :data:`Z_GRID`).
+        The starting point.
     opts : SearchOptions
         The bounds and options of the fit.
 
     """
     from scipy.optimize import least_squares
-    z = np.clip(on_grid(z), opts.lo, opts.hi)
     return least_squares(fun, z, bounds=(opts.lo, opts.hi), method='trf', x_scale=1.0,
                          diff_step=opts.diff_step, ftol=opts.ftol, xtol=opts.xtol, gtol=1e-10,
                          max_nfev=opts.max_nfev or 50 * opts.p)
