@@ -80,7 +80,7 @@ def ros():
 ALONE_DIRS = ('ros', 'ros2_control')
 ALONE_FILES = {'package/test_readme.py', 'package/test_numba_cache.py',
                'analysis/test_stability_grid.py', 'cli/test_play_foxglove.py'}
-ALONE_FIXTURES = {'run_exe', 'ros', 'r2c_stack', 'axis'}
+ALONE_FIXTURES = {'run_exe', 'ros'}        # test/ros2_control's own fixtures: ALONE_DIRS
 
 
 def pytest_collection_modifyitems(config, items):
