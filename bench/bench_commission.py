@@ -2,6 +2,7 @@
 Benchmark ``leadscrew_sim commission`` on the default commission recording of tr12x3.
 
 Run: .venv/bin/python bench/bench_commission.py [--repeat 1] [--seed 11] [--bag]
+[--ref COMMIT]
 
 ``simulate --excite commission`` records tr12x3 with its friction moved by the
 identification tests' factors (mu_s x1.25, mu_k x0.8, Stribeck velocity
@@ -14,7 +15,10 @@ report.json), the fitted values against the truth and the held-out error.
 ``--bag``: the run is first made a robot's rosbag2 bag (joint_states at
 500 Hz with jitter and drops, JointState commands, a segments sidecar: as
 test/cli/test_commission_bag.py writes it, with rosbags) and ``commission``
-reads the bag with its mapping flags.
+reads the bag with its mapping flags. ``--ref COMMIT``: each repeat runs
+``commission`` of that commit (a git worktree of it) and of this tree side by
+side on the same recording; the last line gives each one's best wall time,
+their ratio and whether the two fit.yaml files agree to every byte.
 """
 import argparse
 import json
@@ -35,6 +39,7 @@ def main():
     ap.add_argument('--repeat', type=int, default=1)
     ap.add_argument('--seed', type=int, default=11)
     ap.add_argument('--bag', action='store_true', help='commission a robot bag of the run')
+    ap.add_argument('--ref', default='', help='a commit to time side by side with this tree')
     a = ap.parse_args()
     from leadscrew_sim import load_preset
     p0 = load_preset('tr12x3')
@@ -60,21 +65,43 @@ def main():
         print(f'command: leadscrew_sim commission RUN -o DIR {" ".join(extra)}  (RUN: '
               f'{"a robot bag of " if a.bag else ""}simulate --preset tr12x3 '
               f'--excite commission {" ".join(sets)})')
-        for k in range(a.repeat):
-            out = os.path.join(d, f'out{k}')
-            t0 = time.perf_counter()
-            c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            subprocess.run(cli + ['commission', rec, '-o', out, *extra], check=True,
-                           env=dict(os.environ))
-            wall = time.perf_counter() - t0
-            c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime
-            load = os.getloadavg()[0]
-            with open(os.path.join(out, 'report.json')) as fh:
-                r = json.load(fh)
-            stages = ', '.join(f'{n} {t:.2f}' for n, t in r['timings_s'].items())
-            print(f'run {k + 1}: {wall:.1f} s wall, {cpu:.1f} s CPU (process; load average '
-                  f'{load:.1f}), stages [s]: {stages}')
+        trees = {'this tree': os.path.join(os.path.dirname(os.path.abspath(__file__)), '..')}
+        if a.ref:
+            ref = os.path.join(d, 'ref')
+            subprocess.run(['git', '-C', trees['this tree'], 'worktree', 'add', '--detach', '-f',
+                            ref, a.ref], check=True, capture_output=True)
+            trees = {a.ref: ref, **trees}
+        walls, fits = {t: [] for t in trees}, {}
+        try:
+            for k in range(a.repeat):
+                for name, tree in trees.items():
+                    out = os.path.join(d, f'out{k}_{len(walls[name])}_{name.replace(" ", "_")}')
+                    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree))
+                    t0 = time.perf_counter()
+                    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    subprocess.run(cli + ['commission', rec, '-o', out, *extra], check=True,
+                                   env=env, cwd=tree)
+                    wall = time.perf_counter() - t0
+                    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    cpu = c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime
+                    load = os.getloadavg()[0]
+                    with open(os.path.join(out, 'report.json')) as fh:
+                        r = json.load(fh)
+                    with open(os.path.join(out, 'fit.yaml')) as fh:
+                        fits.setdefault(fh.read(), []).append(name)
+                    walls[name].append(wall)
+                    stages = ', '.join(f'{n} {s:.2f}' for n, s in r['timings_s'].items())
+                    print(f'run {k + 1} ({name}): {wall:.1f} s wall, {cpu:.1f} s CPU (process; '
+                          f'load average {load:.1f}), stages [s]: {stages}', flush=True)
+        finally:
+            if a.ref:
+                subprocess.run(['git', '-C', trees['this tree'], 'worktree', 'remove', '--force',
+                                ref], capture_output=True)
+        if a.ref:
+            best = {t: min(w) for t, w in walls.items()}
+            print('best wall [s]: ' + ', '.join(f'{t} {w:.1f}' for t, w in best.items()) +
+                  f'; this tree / {a.ref} {best["this tree"] / best[a.ref]:.3f}; fit.yaml '
+                  f'{"identical" if len(fits) == 1 else "DIFFERS"}')
         for row in r['sections']['identify']['parameters']:
             err = (row['value'] - truth[row['name']]) / truth[row['name']]
             print(f'  {row["name"]}: {row["value"]:.6g} (truth {truth[row["name"]]:.6g}, '

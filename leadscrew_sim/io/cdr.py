@@ -140,6 +140,29 @@ class Template:
                 np.uint8).reshape(n, 8)
         return out
 
+    def matching(self, rows):
+        """
+        Return which of ``rows`` have this layout: a bool array (n,).
+
+        ``rows`` is a uint8 array (n, message length); a row matches when it
+        equals the template everywhere but in its stamp and doubles.
+        """
+        rows = np.ascontiguousarray(rows, dtype=np.uint8)
+        width = len(self.tmpl)
+        if rows.ndim != 2 or rows.shape[1] != width:
+            return np.zeros(len(rows), dtype=bool)
+        fixed = np.ones(width, dtype=bool)
+        for off in self.offsets:
+            fixed[off:off + 8] = False
+        if self.stamp_off is not None:
+            fixed[self.stamp_off:self.stamp_off + 8] = False
+        tmpl = np.frombuffer(self.tmpl, dtype=np.uint8)
+        if width % 4 == 0:              # compare 4 bytes at a time, the varying ones masked
+            mask = np.where(fixed, 0xFF, 0).astype(np.uint8).view('<u4')
+            words = rows.view('<u4')
+            return ~((words ^ tmpl.view('<u4')) & mask).any(axis=1)
+        return ((rows == tmpl) | ~fixed).all(axis=1)
+
     def columns(self, rows):
         """
         Return the doubles of messages of this layout: an array (n, len(offsets)), or None.
@@ -150,24 +173,8 @@ class Template:
         """
         rows = np.ascontiguousarray(rows, dtype=np.uint8)
         width = len(self.tmpl)
-        if rows.ndim != 2 or rows.shape[1] != width:
+        if rows.ndim != 2 or rows.shape[1] != width or not self.matching(rows).all():
             return None
-        fixed = np.ones(width, dtype=bool)
-        for off in self.offsets:
-            fixed[off:off + 8] = False
-        if self.stamp_off is not None:
-            fixed[self.stamp_off:self.stamp_off + 8] = False
-        tmpl = np.frombuffer(self.tmpl, dtype=np.uint8)
-        if width % 4 == 0:              # compare 4 bytes at a time, the varying ones masked
-            mask = np.where(fixed, 0xFF, 0).astype(np.uint8).view('<u4')
-            words = rows.view('<u4')
-            if ((words ^ tmpl.view('<u4')) & mask).any():
-                return None
-        else:
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], fixed.view(np.int8), [0]])))
-            for a, b in zip(edges[::2], edges[1::2]):     # each span of fixed bytes
-                if not (rows[:, a:b] == tmpl[a:b]).all():
-                    return None
         n = len(rows)
         out = np.empty((n, len(self.offsets)))
         for j, off in enumerate(self.offsets):      # each double, an unaligned strided view
@@ -473,3 +480,35 @@ def joint_state_columns(messages):
                 if j < len(a):
                     block[i, col] = a[j]
     return (stamps, names, *out)
+
+
+def joint_state_groups(messages):
+    """
+    Return serialized JointStates ``messages`` decoded in groups of one layout.
+
+    A list of (indices into ``messages`` (k,), names, positions (k, n_pos),
+    velocities (k, n_vel), efforts (k, n_eff)) that holds every message once:
+    the messages of one byte length that match the first one's layout
+    (:meth:`Template.matching`: the same names and array lengths, an empty
+    frame_id) are read at once, any other message on its own.
+    """
+    lengths = np.array([len(d) for d in messages], dtype=np.int64)
+    out = []
+    for length in np.unique(lengths):
+        rest = np.flatnonzero(lengths == length)
+        rows = np.frombuffer(b''.join(bytes(messages[i]) for i in rest),
+                             dtype=np.uint8).reshape(len(rest), int(length))
+        while len(rest):
+            _s, names, pos, vel, eff = decode_joint_state(bytes(rows[0]))
+            tmpl = joint_state_template(names, len(pos), len(vel), len(eff))
+            same = tmpl.matching(rows)
+            if not same[0]:             # a layout no template reads (a frame_id): alone
+                same[:] = False
+                same[0] = True
+                got = np.array([list(pos) + list(vel) + list(eff)], dtype=float)
+            else:
+                got = tmpl.columns(rows[same])
+            a, b = len(pos), len(pos) + len(vel)
+            out.append((rest[same], names, got[:, :a], got[:, a:b], got[:, b:]))
+            rest, rows = rest[~same], rows[~same]
+    return out

@@ -200,3 +200,42 @@ def test_bulk_float64_decoding_reads_what_rclpy_wrote():
         assert np.array_equal(got.view(np.int64), values.view(np.int64))
     big = [b'\x00\x00\x00\x00' + struct.pack('>d', v) for v in values[:5]]  # big-endian CDR
     assert np.array_equal(C.decode_float64s(big).view(np.int64), values[:5].view(np.int64))
+
+
+def test_joint_state_groups_read_what_rclpy_wrote():
+    """
+    Mixed JointStates decode by groups into each message's own names and arrays.
+
+    rclpy serializes nut and screw commands, messages with short or empty
+    arrays, and one with a frame_id (no template reads it); every message is
+    in exactly one group, with the doubles rclpy wrote, bit for bit.
+    """
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    rng = np.random.default_rng(5)
+    pool = iter(_doubles(rng, 4000))
+
+    def doubles(n):
+        return [next(pool) for _ in range(n)]
+    written = []
+    for i in range(400):
+        names = [['nut_joint'], ['screw_joint'], ['screw_joint', 'nut_joint']][i % 3]
+        m = len(names)
+        pos = doubles(m) if i % 5 else []
+        vel = doubles(m if i % 7 else 1)
+        eff = doubles(m)
+        msg = JointState(name=names, position=pos, velocity=vel, effort=eff)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = i, 17 * i
+        if i == 123:
+            msg.header.frame_id = 'base'
+        written.append((names, pos, vel, eff, serialize_message(msg)))
+    groups = C.joint_state_groups([w[-1] for w in written])
+    seen = np.concatenate([g[0] for g in groups])
+    assert sorted(seen.tolist()) == list(range(len(written)))
+    assert any(len(g[0]) == 1 and g[0][0] == 123 for g in groups)
+    for index, names, *arrays in groups:
+        for row, i in enumerate(index):
+            assert names == written[i][0]
+            for got, want in zip(arrays, written[i][1:4]):
+                assert np.array_equal(got[row].view(np.int64),
+                                      np.asarray(want, dtype=float).view(np.int64))

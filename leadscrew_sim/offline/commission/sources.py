@@ -184,7 +184,7 @@ class ForeignAxis:
         if seed is not None:
             values['sensor_seed'] = seed
         params = ScrewParams.from_dict(values, base=self.recorded)
-        rep = ForeignReplay(self.mapping, self.rec, params)
+        rep = self.replay.with_params(params)
         cols = rep.replay({}, interpolate=False)
         n = len(cols['nut_position'])
         return cols, (rep.t0 + (np.arange(n) + 1) * rep.dt_ns) / NS

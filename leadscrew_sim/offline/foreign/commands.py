@@ -133,34 +133,32 @@ class Commands:
         position or velocity on the nut joint, one joint per message).
         """
         self.kind = 'joint'
-        items, kept, roles = [], [], []
         screw, nut = joints
-        for t, d in zip(times, datas):
-            _s, names, pos, vel, eff = C.decode_joint_state(bytes(d))
-            if mapping.command_joint is not None or self.role is None:
+        groups = C.joint_state_groups(datas)
+        first = next(g for g in groups if g[0][0] == 0)
+        _name, self.role = self._joint(first[1], mapping, joints)  # the first message's
+        n = len(datas)
+        values = np.full((n, 3), _NAN)
+        roles = np.empty(n, dtype=object)
+        for index, names, *arrays in groups:
+            if mapping.command_joint is not None:
                 name, role = self._joint(names, mapping, joints)
             elif nut in names:
                 name, role = nut, 'nut'
             elif screw in names:
                 name, role = screw, 'screw'
             else:
-                name, role = None, None
-            if self.role is None:
-                self.role = role
-            if name not in names:
-                self.skipped += 1
-                continue
+                continue            # a message that names neither joint is skipped
             j = names.index(name)
-            vals = [a[j] if j < len(a) else _NAN for a in (pos, vel, eff)]
-            if not any(np.isfinite(vals)):
-                self.skipped += 1
-                continue
-            items.append(vals)
-            kept.append(t)
-            roles.append(role)
-        self.times = np.array(kept, dtype=np.int64)
-        self.values = np.array(items, dtype=float).reshape(-1, 3)
-        self.roles = roles
+            for col, a in enumerate(arrays):
+                if j < a.shape[1]:
+                    values[index, col] = a[:, j]
+            roles[index] = role
+        keep = np.isfinite(values).any(axis=1)
+        self.skipped += int(np.count_nonzero(~keep))
+        self.times = np.asarray(times, dtype=np.int64)[keep]
+        self.values = values[keep]
+        self.roles = list(roles[keep])
 
     def _trajectories(self, datas, times, mapping, joints):
         self.kind = 'trajectory'

@@ -14,6 +14,7 @@ order dt^4 times the fourth derivative, far below any encoder's noise at
 by up to half a step times the velocity (10 mrad at 20 rad/s and 1 kHz),
 more than a fine encoder's noise.
 """
+import copy
 import dataclasses
 
 import numpy as np
@@ -167,6 +168,7 @@ class ForeignReplay:
         except ParameterError as exc:
             raise RunError(f'{rec.path}: the first measured nut position: {exc}') from None
         self._inputs = None
+        self._rows = {}             # the command rows by what they depend on (inputs())
         self.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
                        else D.Delay(0.0, float('nan'), 'not determined'))
         if m.command_delay is None and estimate_delay:
@@ -277,11 +279,26 @@ class ForeignReplay:
 
     # ---------------------------------------------------------------- inputs
     def inputs(self):
-        """Return (segments [], command rows (n, 4), forces (n,)) as ``Resim.inputs``."""
+        """
+        Return (segments [], command rows (n, 4), forces (n,)) as ``Resim.inputs``.
+
+        The rows depend on the parameters only through what the command hold
+        reads (the nut-to-motor map, the command delay and loss, the drive
+        type): replays of one recording that share those share the rows
+        (:meth:`with_params`).
+        """
         if self._inputs is None:
             from ...core.model import LeadScrewModel
             model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
-            hold = CommandHold('', 0.0, NutMap.of_model(model), params=self.params)
+            nut_map, p = NutMap.of_model(model), self.params
+            key = (nut_map.theta0, nut_map.x0, nut_map.k, int(p.command_delay),
+                   float(p.fault_command_drop_rate), p.drive_type,
+                   int(p.sensor_seed) if p.fault_command_drop_rate > 0.0 else None,
+                   self.t0, self.dt_ns, self.n_steps, self.delay.value)
+            if key in self._rows:
+                self._inputs = self._rows[key]
+                return self._inputs
+            hold = CommandHold('', 0.0, nut_map, params=self.params)
             start = None
             traj = next((p for p in self.commands.parts if p.kind == 'trajectory'), None)
             if traj is not None:
@@ -291,8 +308,28 @@ class ForeignReplay:
                     np.isfinite(v).any() else None
             rows = self.commands.rows(self.t0, self.dt_ns, self.n_steps, hold,
                                       int(round(self.delay.value * NS)), start)
-            self._inputs = ([], rows, np.zeros(self.n_steps))
+            rows.flags.writeable = False        # shared by the replays of the key
+            self._inputs = self._rows[key] = ([], rows, np.zeros(self.n_steps))
         return self._inputs
+
+    def with_params(self, params):
+        """
+        Return this replay with other parameters, as a new one would be, without reading again.
+
+        The states and commands are shared; the delay is the mapping's, else
+        0 (a new replay does not estimate it).
+        """
+        new = copy.copy(self)
+        m = self.mapping
+        try:
+            new.params = ScrewParams.from_dict({'initial_position': self.x0}, base=params) \
+                if self.x0 is not None else params
+        except ParameterError as exc:
+            raise RunError(f'{self.path}: the first measured nut position: {exc}') from None
+        new._inputs = None
+        new.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
+                      else D.Delay(0.0, float('nan'), 'not determined'))
+        return new
 
     def model(self, overrides=None):
         """Return a new model with the parameters and ``overrides``."""
@@ -307,17 +344,18 @@ class ForeignReplay:
             out['initial_position'] = self.x0
         return out
 
-    def replay(self, overrides, n=None, interpolate=True):
+    def replay(self, overrides, n=None, interpolate=True, values=None):
         """
         Return the columns of ``model.run`` of the first ``n`` steps (all: None).
 
         With ``interpolate``, at each step that has a recorded state the
         sensor columns hold the re-simulation at that state's stamp
         (see the module), so that they compare with :meth:`measured`.
+        ``values``: only these columns (``model.run``'s lean path; None: all).
         """
         _seg, rows, forces = self.inputs()
         try:
-            cols = self.model(overrides).run(None, forces[:n], commands=rows[:n])
+            cols = self.model(overrides).run(None, forces[:n], commands=rows[:n], values=values)
         except ParameterError as exc:
             raise RunError(f're-simulation with {overrides}: {exc}') from None
         if not interpolate:

@@ -252,12 +252,16 @@ class Problem:
         meas.mask = mask
         return changed
 
-    def replay(self, values, n=None, plain=False):
+    def replay(self, values, n=None, plain=False, lean=False):
         """
         Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``.
 
         Restarted at the rests unless ``plain`` (one run from the start, as recorded).
+        ``lean``: a foreign recording's re-simulation has only the columns the
+        residuals read (the compared signals and the slopes that place them at
+        the states), not the energies and forces a report reads.
         """
+        cols = self.lean_columns() if lean and self.foreign else None
         self.evaluations += 1
         overrides = dict(self.overrides, **values)
         try:
@@ -265,9 +269,10 @@ class Problem:
                 return self.anchoring.run(self.source.model(overrides), self.commands,
                                           self.forces, n)
             if self.foreign and self.fit_delay and not plain and 'sensor_seed' not in values:
-                return self._aligned(self.source.replay(overrides, n, interpolate=False), n)
+                return self._aligned(self.source.replay(overrides, n, interpolate=False,
+                                                        values=cols), n)
             if n is None or self.foreign:
-                return self.source.replay(overrides, n) if self.foreign else \
+                return self.source.replay(overrides, n, values=cols) if self.foreign else \
                     self.source.replay(overrides)
             src = self.source          # the steps up to n only: the horizon of a fit stage
             parts, done = [], 0
@@ -352,9 +357,15 @@ class Problem:
         used = self.measurements.mask.any(axis=0)
         return {k: np.asarray(v)[:len(used)][used[:len(v)]] for k, v in cols.items()}
 
+    def lean_columns(self):
+        """Return the re-simulated columns the residuals read: each signal's and its slope."""
+        meas = self.measurements
+        names = [meas.columns[s] for s in meas.names]
+        return tuple(sorted(set(names) | {SLOPES[c] for c in names if c in SLOPES}))
+
     def residuals(self, values, n=None):
         """Return the weighted residuals of the first ``n`` steps (all: None); show progress."""
-        r = self.measurements.residuals(self.replay(values, n), n)
+        r = self.measurements.residuals(self.replay(values, n, lean=True), n)
         if self.progress is not None:
             if n is None:
                 self.misfit = rms_per_signal(self.measurements.names, r)
