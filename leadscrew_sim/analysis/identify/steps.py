@@ -318,7 +318,7 @@ class Anchoring:
         """Return the first step of each segment after the first: one after each rest."""
         return [r.k + 1 for r in self.rests if 0 < r.k + 1 < n]
 
-    def run(self, model, commands, forces, n=None, kicks=None):
+    def run(self, model, commands, forces, n=None, kicks=None, values=None):
         """
         Run the first ``n`` steps (all: None) through ``model``, anchored at each rest.
 
@@ -339,8 +339,13 @@ class Anchoring:
             The steps to run.
         kicks : dict, optional
             Rest index -> (displacement [rad], rate [rad/s]) added to its motor.
+        values : iterable of str, optional
+            Only these columns, and those the encoder's zero reads
+            (``model.run``'s lean path; default all).
 
         """
+        if values is not None:
+            values = tuple(sorted(set(values) | {'sensor_screw_angle', 'stick_a'}))
         n = len(commands) if n is None else min(n, len(commands))
         rows = np.array(commands[:n], dtype=float)
         held = np.isnan(rows[:, 0])
@@ -352,7 +357,7 @@ class Anchoring:
             if j > 0:
                 anchor(model, self.rests[j - 1], offset, (kicks or {}).get(j - 1, (0.0, 0.0)))
             if b > a:
-                parts.append(model.run(None, forces[a:b], commands=rows[a:b]))
+                parts.append(model.run(None, forces[a:b], commands=rows[a:b], values=values))
             if j == 0:
                 offset = self._zero(parts[0]) if parts else 0.0
             a = b

@@ -257,28 +257,28 @@ class Problem:
         Return the re-simulated columns of the first ``n`` steps (all: None) with ``values``.
 
         Restarted at the rests unless ``plain`` (one run from the start, as recorded).
-        ``lean``: a foreign recording's re-simulation has only the columns the
-        residuals read (the compared signals and the slopes that place them at
-        the states), not the energies and forces a report reads.
+        ``lean``: the re-simulation has only the columns the residuals read
+        (the compared signals, and the slopes that place a foreign recording's
+        at its states), not the energies and forces a report reads.
         """
-        cols = self.lean_columns() if lean and self.foreign else None
+        cols = self.lean_columns() if lean else None
         self.evaluations += 1
         overrides = dict(self.overrides, **values)
         try:
             if self.anchoring is not None and not plain:
                 return self.anchoring.run(self.source.model(overrides), self.commands,
-                                          self.forces, n)
+                                          self.forces, n, values=cols)
             if self.foreign and self.fit_delay and not plain and 'sensor_seed' not in values:
                 return self._aligned(self.source.replay(overrides, n, interpolate=False,
                                                         values=cols), n)
             if n is None or self.foreign:
                 return self.source.replay(overrides, n, values=cols) if self.foreign else \
-                    self.source.replay(overrides)
+                    self.source.replay(overrides, values=cols)
             src = self.source          # the steps up to n only: the horizon of a fit stage
             parts, done = [], 0
-            for part, cols in src.blocks(src.model(overrides), overrides=overrides,
-                                         block_ticks=n):
-                parts.append(cols)
+            for part, part_cols in src.blocks(src.model(overrides), overrides=overrides,
+                                              block_ticks=n, values=cols):
+                parts.append(part_cols)
                 done = part.k1
                 if done >= n:
                     break

@@ -208,7 +208,7 @@ class Resim:
         return LeadScrewModel(params, dt=self.dt_ns / NS, ageing=self.ageing)
 
     def blocks(self, model, line=None, overrides=None, progress=None, block_ticks=None,
-               log=None):
+               log=None, values=None):
         """
         Run the segments through ``model``; yield (segment, columns of ``model.run``).
 
@@ -231,6 +231,8 @@ class Resim:
         log : EventLog, optional
             Gets the columns of every part, the recorded parameter updates and
             the steps whose command timed out (:mod:`.run_events`).
+        values : iterable of str, optional
+            Only these columns (``model.run``'s lean path; default all).
 
         """
         segments, commands, forces = self.inputs()
@@ -252,7 +254,8 @@ class Resim:
             for part in _parts(seg, block_ticks):
                 a, b = part.k0 - seg.k0, part.k1 - seg.k0
                 with simulation_faults(f' in steps {part.k0}..{part.k1 - 1}'):
-                    cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b])
+                    cols = model.run(None, forces[part.k0:part.k1], commands=rows[a:b],
+                                     values=values)
                 if log is not None:
                     log.add(part.k0, cols)
                 yield part, cols
@@ -261,7 +264,7 @@ class Resim:
         if progress is not None:
             progress.done()
 
-    def replay(self, overrides=None):
+    def replay(self, overrides=None, values=None):
         """
         Return the columns of ``model.run`` of every step of the recording.
 
@@ -270,6 +273,8 @@ class Resim:
         overrides : dict, optional
             Physics parameters {name: value} on top of the recorded ones, kept
             across the recorded updates.
+        values : iterable of str, optional
+            Only these columns (``model.run``'s lean path; default all).
 
         Returns
         -------
@@ -279,7 +284,7 @@ class Resim:
 
         """
         model = self.model(overrides)
-        parts = [cols for _seg, cols in self.blocks(model, overrides=overrides)]
+        parts = [cols for _seg, cols in self.blocks(model, overrides=overrides, values=values)]
         if not parts:
             return {}
         return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
