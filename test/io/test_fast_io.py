@@ -26,6 +26,7 @@ from leadscrew_sim.cli import main as cli_main
 from leadscrew_sim.offline.simulate.sources import Held, make_torque_source
 from leadscrew_sim.core.commands import CommandHold, NutMap
 from leadscrew_sim.io import cdr as C
+from leadscrew_sim.io import joint_states as JS
 from leadscrew_sim.io.mcap_reader import Recording
 from leadscrew_sim.io import record_fill as RF
 from leadscrew_sim.io.record_fill import EncodedRows, Stamps
@@ -229,7 +230,7 @@ def test_joint_state_groups_read_what_rclpy_wrote():
         if i == 123:
             msg.header.frame_id = 'base'
         written.append((names, pos, vel, eff, serialize_message(msg)))
-    groups = C.joint_state_groups([w[-1] for w in written])
+    groups = JS.joint_state_groups([w[-1] for w in written])
     seen = np.concatenate([g[0] for g in groups])
     assert sorted(seen.tolist()) == list(range(len(written)))
     assert any(len(g[0]) == 1 and g[0][0] == 123 for g in groups)

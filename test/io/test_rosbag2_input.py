@@ -25,6 +25,7 @@ from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 import yaml
 
 from leadscrew_sim.io import cdr as C
+from leadscrew_sim.io import joint_states as JS
 from leadscrew_sim.io.mcap_reader import RecordingError
 from leadscrew_sim.io.rosbag2 import BagRecording
 from leadscrew_sim.offline.options import open_recording
@@ -257,7 +258,7 @@ def test_cdr_decoders_against_rosbags():
     msgs = [B.joint_state(B.EPOCH + 5, ('x', 'y'), [1.0, 2.0], [], [3.0, 4.0]),
             B.joint_state(B.EPOCH + 9, ('y', 'x'), [5.0, 6.0], [7.0, 8.0], [])]
     raws = [bytes(B.TYPESTORE.serialize_cdr(m, 'sensor_msgs/msg/JointState')) for m in msgs]
-    stamps, names, pos, vel, eff = C.joint_state_columns(raws)
+    stamps, names, pos, vel, eff = JS.joint_state_columns(raws)
     assert stamps.tolist() == [B.EPOCH + 5, B.EPOCH + 9] and names == ['x', 'y']
     assert pos.tolist() == [[1.0, 2.0], [6.0, 5.0]]
     assert np.isnan(vel[0]).all() and vel[1].tolist() == [8.0, 7.0]

@@ -32,6 +32,7 @@ from ..options import NS, RunError
 from ...core.commands import first_step
 from ...core.drive_modes import MODE_POSITION, MODE_TORQUE
 from ...io import cdr as C
+from ...io import joint_states as JS
 
 _NAN = float('nan')
 
@@ -134,7 +135,7 @@ class Commands:
         """
         self.kind = 'joint'
         screw, nut = joints
-        groups = C.joint_state_groups(datas)
+        groups = JS.joint_state_groups(datas)
         first = next(g for g in groups if g[0][0] == 0)
         _name, self.role = self._joint(first[1], mapping, joints)  # the first message's
         n = len(datas)

@@ -162,15 +162,8 @@ class ForeignReplay:
         self.dt_ns = int(round(NS / rate))
         self.first = first
         self.x0 = self._start_position()
-        try:
-            self.params = ScrewParams.from_dict({'initial_position': self.x0}, base=params) \
-                if self.x0 is not None else params
-        except ParameterError as exc:
-            raise RunError(f'{rec.path}: the first measured nut position: {exc}') from None
-        self._inputs = None
         self._rows = {}             # the command rows by what they depend on (inputs())
-        self.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
-                       else D.Delay(0.0, float('nan'), 'not determined'))
+        self._use(params)
         if m.command_delay is None and estimate_delay:
             self.set_delay(self.estimate_delay())
 
@@ -290,10 +283,10 @@ class ForeignReplay:
         if self._inputs is None:
             from ...core.model import LeadScrewModel
             model = LeadScrewModel(self.params, dt=self.dt_ns / NS)
-            nut_map, p = NutMap.of_model(model), self.params
-            key = (nut_map.theta0, nut_map.x0, nut_map.k, int(p.command_delay),
-                   float(p.fault_command_drop_rate), p.drive_type,
-                   int(p.sensor_seed) if p.fault_command_drop_rate > 0.0 else None,
+            nut_map, params = NutMap.of_model(model), self.params
+            key = (nut_map.theta0, nut_map.x0, nut_map.k, int(params.command_delay),
+                   float(params.fault_command_drop_rate), params.drive_type,
+                   int(params.sensor_seed) if params.fault_command_drop_rate > 0.0 else None,
                    self.t0, self.dt_ns, self.n_steps, self.delay.value)
             if key in self._rows:
                 self._inputs = self._rows[key]
@@ -320,16 +313,19 @@ class ForeignReplay:
         0 (a new replay does not estimate it).
         """
         new = copy.copy(self)
-        m = self.mapping
+        new._use(params)
+        return new
+
+    def _use(self, params):
+        """Take ``params`` at the recording's start position, and the mapping's delay (else 0)."""
         try:
-            new.params = ScrewParams.from_dict({'initial_position': self.x0}, base=params) \
+            self.params = ScrewParams.from_dict({'initial_position': self.x0}, base=params) \
                 if self.x0 is not None else params
         except ParameterError as exc:
             raise RunError(f'{self.path}: the first measured nut position: {exc}') from None
-        new._inputs = None
-        new.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
-                      else D.Delay(0.0, float('nan'), 'not determined'))
-        return new
+        m = self.mapping
+        self.set_delay(D.Delay(m.command_delay, 0.0, 'set') if m.command_delay is not None
+                       else D.Delay(0.0, float('nan'), 'not determined'))
 
     def model(self, overrides=None):
         """Return a new model with the parameters and ``overrides``."""

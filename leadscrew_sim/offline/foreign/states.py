@@ -13,6 +13,7 @@ import numpy as np
 
 from ..options import NS, RunError
 from ...io import cdr as C
+from ...io import joint_states as JS
 
 #: The measured signals of a JointState: (name, joint role, array, model.run column, unit).
 SIGNALS = (('screw_angle', 'screw', 'position', 'sensor_screw_angle', 'rad'),
@@ -54,7 +55,7 @@ class States:
         if not len(arrays.log_times):
             raise RunError(f'{path}: no messages on the state topic {topic}')
         try:
-            stamps, names, pos, vel, eff = C.joint_state_columns(arrays.data)
+            stamps, names, pos, vel, eff = JS.joint_state_columns(arrays.data)
         except C.DecodeError as exc:
             raise RunError(f'{path}: a message on {topic} is not a sensor_msgs/JointState '
                            f'({exc})') from None

@@ -14,6 +14,7 @@ from .mapping import (COMMAND_TYPES, FLOAT64, is_state_topic, JOINT_STATE, MULTI
                       TRAJECTORY)
 from ..options import NS
 from ...io import cdr as C
+from ...io import joint_states as JS
 
 #: Name parts that suggest a joint's role.
 SCREW_HINTS = ('screw', 'motor', 'rev', 'rot', 'spindle')
@@ -53,7 +54,7 @@ def marked_lines(rec):
             lines.append(f'JointState {topic}: no messages')
             continue
         try:
-            stamps, names, pos, vel, eff = C.joint_state_columns(a.data)
+            stamps, names, pos, vel, eff = JS.joint_state_columns(a.data)
         except C.DecodeError as exc:
             lines.append(f'JointState {topic}: undecodable ({exc})')
             continue
