@@ -306,6 +306,10 @@ with open(out + '.part', 'w') as fh:
 os.replace(out + '.part', out)      # the test reads it whole or not at all
 while not stop:
     time.sleep(0.05)
+# Ctrl-C reaches it twice (the group's SIGINT and the one launch forwards): the second can
+# land while the interpreter shuts down, with the default handler back, and kill it with
+# -2; the real robot_state_publisher takes both, so the stand-in leaves without shutting down.
+os._exit(0)
 '''
 
 

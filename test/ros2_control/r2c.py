@@ -441,6 +441,10 @@ class Axis:
             lambda m: self.received.append((time.time_ns(), m)), helpers.DEEP)
         self.ros.node.create_subscription(JointState, '/joint_states', self.broadcast.append,
                                           helpers.DEEP)
+        # The hardware acts as soon as ros2_control_node activates it (without an initial_value
+        # it commands 0 at once): this process sees the node's states first, or it may miss
+        # the start of what the test looks at.
+        self.wait_states()
         lib = self.prefix / 'install/lib/controller_manager'
         self.cm = self._start('ros2_control_node', [
             lib / 'ros2_control_node', '--ros-args', '--params-file', params,
@@ -458,7 +462,6 @@ class Axis:
             assert ok and sp.proc.returncode == 0, (
                 f'spawner {" ".join(args)} failed ({sp.proc.returncode}):\n{sp.output(20)}\n'
                 f'--- ros2_control_node:\n{self.cm.output(30)}')
-        self.wait_states()
         # The loop is closed once the broadcaster republishes what the node reports.
         if 'joint_state_broadcaster' in self.active:
             ok = self.ros.spin_until(lambda: self.broadcast_position() is not None, 20.0)
