@@ -90,6 +90,13 @@ def report(path, out, name_of=None):
                      f'fit, raised the noise level of {", ".join(grown)}; fitted again from the '
                      'start with it: ' + ('explained the recording and replaced the fit'
                                           if explained else 'did not explain it either'))
+    if out.get('on_compared') is not None:
+        fell, explained = out['on_compared']
+        lines.append('the drive loop\'s response to the sensors, measured over the steps '
+                     f'compared only, lowered the noise level of {", ".join(fell)}; fitted '
+                     'again from the start with it and judged against it: '
+                     + ('explained the recording and replaced the fit' if explained
+                        else 'did not explain it either'))
     lines.append('')
     pct = int(round(100 * LEVEL))
     lines.append(f'{"parameter":<20} {"unit":<8} {"start":>13} {"value":>13} '

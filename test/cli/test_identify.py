@@ -158,14 +158,18 @@ def fitted(tmp_path_factory, preset, mode, *options):
 #: The cases and the parameters each cannot determine (verdict not identifiable): the 10 kg
 #: of tr12x3 keep the thread on one flank under torque alone, and so does the split nut's
 #: 20 N preload against the inertia of the torque pulses, and stick_slip's 20 kg in the
-#: steps its torque pulses' rests determine; through the position loop the speed ladder's
-#: Stribeck velocity is so weakly fixed that refits of synthetic recordings land +-60 %
-#: apart.
+#: steps its torque pulses' rests determine.
 CASES = {('tr12x3', 'torque'): {'backlash'}, ('tr12x3', 'velocity'): set(),
-         ('tr12x3', 'position'): {'stribeck_velocity'}, ('stick_slip', 'torque'): {'backlash'},
+         ('tr12x3', 'position'): set(), ('stick_slip', 'torque'): {'backlash'},
          ('stick_slip', 'position'): set(), ('stick_slip', 'velocity'): set(),
          ('anti_backlash', 'torque'): {'backlash'}, ('anti_backlash', 'velocity'): set(),
          ('anti_backlash', 'position'): set()}
+#: The parameters a case fixes so weakly that its verdict lies at the bar: through the
+#: position loop the speed ladder's Stribeck velocity, whose refits of synthetic recordings
+#: spread +-46 % (+-59 % counting one that stopped in another minimum). Either verdict is
+#: right; identified, its interval must say how weak (wider than the tolerance) and hold
+#: the truth.
+WEAK = {('tr12x3', 'position'): {'stribeck_velocity'}}
 
 
 @pytest.mark.parametrize('preset,mode', list(CASES))
@@ -182,8 +186,14 @@ def test_recovers_the_true_parameters(tmp_path_factory, preset, mode):
             assert value == getattr(start, name)        # kept, never presented as fitted
             continue
         rel, floor = TOLERANCE[name]
-        assert vd.identified, vd
-        assert abs(value - t) <= max(rel * t, floor), (name, value, t)
+        if name in WEAK.get((preset, mode), ()):
+            if not vd.identified:
+                assert value == getattr(start, name)
+                continue
+            assert vd.rel > rel, vd
+        else:
+            assert vd.identified, vd
+            assert abs(value - t) <= max(rel * t, floor), (name, value, t)
         # the 95 % interval widened to 99.9 % (x 3.29 / 1.96): the cases check 32
         # intervals, and all thirty-two 95 % ones would hold the truth in only a fifth
         # of the seeds (0.95^32); a correct 99.9 % interval misses once in a thousand

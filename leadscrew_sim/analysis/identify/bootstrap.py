@@ -31,6 +31,13 @@ MIN_HALF_WIDTH = 0.01
 #: resolution. Refits that converge come back most of the way (they end within the
 #: noise's spread, about a quarter of the offset of two half-widths).
 STALLED = 0.25
+#: Largest residual RMS / noise level of a refit that explained its synthetic recording (the
+#: bar identify holds the recording's own fit to). A refit above it stopped in another
+#: minimum: the search, not the noise, put it there, so its error is left out of the spread
+#: (the recording's own fit is only accepted below the bar too).
+LOST = 2.5
+#: Fewest refits that explained their synthetic recordings for a parameter's spread.
+MIN_KEPT = 2
 
 
 def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
@@ -53,7 +60,11 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     by less than STALLED of their offset: flat signals at their resolution),
     they are made again from at least MIN_HALF_WIDTH of the values off, and
     that parameter takes the new refits' errors; where those stay too, value
-    +- t_K s_b is about their starts' spread: said to be a lower bound.
+    +- t_K s_b is about their starts' spread: said to be a lower bound. A
+    refit that does not explain its synthetic recording (an RMS above
+    :data:`LOST` noise levels) stopped in another minimum of a rough cost; it
+    is left out, K counts the others, and a parameter with fewer than
+    :data:`MIN_KEPT` of them is not identifiable: nothing bounds its error.
     Returns the new FitResult.
 
     Parameters
@@ -84,14 +95,20 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
         errors = np.where(stalled, errors2, errors)
         stalled = stalled & stalled2
         nfev += nfev2 - res.nfev
-    s_b = np.sqrt(np.mean(np.array(errors) ** 2, axis=0))
-    tq = t_975(BOOTSTRAP)
+    kept = np.sum(np.isfinite(errors), axis=0)       # per parameter: the refits that count
+    s_b = np.sqrt(np.nansum(errors ** 2, axis=0) / np.maximum(kept, 1))
     verdicts, lower, upper = [], [], []
     for i, (v, vd, c) in enumerate(zip(res.values, res.verdicts, coords)):
-        problem.bootstrap[c.name] = float(s_b[i])
-        if vd.identified and tq * s_b[i] > 0.5 * (vd.upper - vd.lower):   # never narrower
-            why = 'synthetic' if stalled[i] else ''
-            vd = _widened(vd, v, c, tq * float(s_b[i]), float(s_b[i]), why)
+        problem.bootstrap[c.name] = float(s_b[i]) if kept[i] else float('nan')
+        if vd.identified and kept[i] < MIN_KEPT:
+            vd = dataclasses.replace(vd, identified=False, reason=(
+                f'not identifiable: {len(errors) - kept[i]} of {len(errors)} refits of '
+                'synthetic recordings did not explain theirs (they stopped in other minima '
+                'of a rough cost): too few are left to bound the error'))
+        elif vd.identified and t_975(kept[i]) * s_b[i] > 0.5 * (vd.upper - vd.lower):
+            why = 'synthetic' if stalled[i] else ''         # never narrower
+            vd = _widened(vd, v, c, t_975(kept[i]) * float(s_b[i]), float(s_b[i]), why,
+                          refits=(int(kept[i]), len(errors)))
         verdicts.append(vd)
         lower.append(vd.lower)
         upper.append(vd.upper)
@@ -203,9 +220,11 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
 
     The arguments are :func:`bootstrap`'s; ``floor``: the least half-width a
     refit's start counts with [share of the value, or of the typical size].
-    errors: array (BOOTSTRAP, parameters) of refit less fitted value;
-    stalled: per parameter, True if the refits moved it on average by less
-    than STALLED of their offset (they stayed where they started).
+    errors: array (BOOTSTRAP, parameters) of refit less fitted value, a row
+    of NaN for a refit that did not explain its synthetic recording (RMS
+    above :data:`LOST` noise levels); stalled: per parameter, True if the
+    other refits moved it on average by less than STALLED of their offset
+    (they stayed where they started).
     """
     fitted = dict(zip(res.names, res.values))
     sensors = dict(getattr(problem, 'loop_sensors', None) or
@@ -233,14 +252,18 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
             syn = ident.fit(problem.residuals, ident.coordinates(
                 names, ScrewParams.from_dict(away, base=start), bounds),
                 max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
+            nfev += syn.nfev
+            if np.max(np.asarray(syn.rms, dtype=float)) > LOST:
+                errors.append(np.full(len(coords), np.nan))
+                continue
             errors.append(np.array(syn.values) - np.array(res.values))
             starts.append([away[c.name] for c in coords])
             ends.append(syn.values)
-            nfev += syn.nfev
     finally:
         meas.data, meas.mask, problem.anchoring = recorded
-    return (np.array(errors), _stalled(np.array(starts), np.array(ends), np.array(res.values)),
-            nfev)
+    stalled = (_stalled(np.array(starts), np.array(ends), np.array(res.values)) if starts
+               else np.zeros(len(coords), dtype=bool))
+    return np.array(errors), stalled, nfev
 
 
 def _dither(sensors, base, seed):
@@ -268,9 +291,11 @@ def _dither(sensors, base, seed):
     return out
 
 
-def _widened(vd, v, c, hw, s_b, stalled=''):
+def _widened(vd, v, c, hw, s_b, stalled='', refits=(BOOTSTRAP, BOOTSTRAP)):
     """
     Return the verdict of value ``v`` of coordinate ``c`` with the half-width ``hw``.
+
+    ``refits``: (those that count, those made) of the synthetic recordings.
 
     ``stalled``: '' when ``hw`` is the refits' spread; 'synthetic' when the
     refits of the synthetic recordings stayed where they started for this
@@ -289,21 +314,30 @@ def _widened(vd, v, c, hw, s_b, stalled=''):
                f'not identifiable: refits of the recording ended +-{100 * rel:.3g} % from the '
                'fit: its cost does not single out a value closer than that')
     elif stalled:
-        refits = (f'refits of {BOOTSTRAP} synthetic recordings' if stalled == 'synthetic' else
-                  'refits of the recording')
+        refits = (f'refits of {_counted(refits)} synthetic recordings'
+                  if stalled == 'synthetic' else 'refits of the recording')
         why = (f'identified: 95 % interval +-{100 * rel:.3g} % or wider ({refits} started '
                'that far off stayed there: the signals are flat or rough there at their '
                'resolution)' if ok else
                f'not identifiable: {refits} started +-{100 * rel:.3g} % off stayed there: '
                'the signals are flat or rough there at their resolution')
     elif ok:
-        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of {BOOTSTRAP} '
-               'refits of synthetic recordings)')
+        why = (f'identified: 95 % interval +-{100 * rel:.3g} % (the spread of '
+               f'{_counted(refits)} refits of synthetic recordings)')
     else:
-        why = (f'not identifiable: refits of {BOOTSTRAP} synthetic recordings spread '
+        why = (f'not identifiable: refits of {_counted(refits)} synthetic recordings spread '
                f'+-{100 * rel:.3g} %: the noise, not the data, decides it')
     return dataclasses.replace(vd, identified=ok, reason=why, lower=lo, upper=hi, rel=rel,
                                std=s_b)
+
+
+def _counted(refits):
+    """Return how many refits count, and why the others do not ('4', '3 (1 lost ...)')."""
+    kept, made = refits
+    if kept == made:
+        return f'{kept}'
+    return (f'{kept} (of {made}; the others stopped in other minima, not explaining their '
+            'recordings)')
 
 
 def t_975(dof):

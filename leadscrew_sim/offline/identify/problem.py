@@ -132,7 +132,7 @@ class Problem:
             self.sensor_noise = dict(self.noise)
             self.add_loop_noise({})
 
-    def add_loop_noise(self, values):
+    def add_loop_noise(self, values, compared=False):
         """
         Add to each signal's noise level the spread the sensor noise causes through the drive.
 
@@ -148,7 +148,9 @@ class Problem:
         speed gave 1.3e-5, 1.9e-4 and 1.5e-5 rad with three seeds), but more
         seeds, or a measurement again at the fit, change the weights of the
         tested fits and lose three of them (stick_slip's ladders, the split
-        nut's second attempt): one seed, as those were tuned with.
+        nut's second attempt): one seed, as those were tuned with. ``compared``:
+        the RMS over the steps the residuals compare only (the steps left out,
+        a slow level's limit cycle, differ most between the runs).
         """
         recorded = self.recorded
         sensors = dict(self.loop_sensors)
@@ -158,10 +160,12 @@ class Problem:
             sensors['sensor_seed'] = (recorded.sensor_seed + 1 + j) % 2 ** 31
             noisy.append(self.replay(dict(values, **sensors), plain=True))
         meas = self.measurements
-        for name in meas.names:
+        for i, name in enumerate(meas.names):
             col = {'screw_angle': 'motor_angle'}.get(name, name)
             d = np.array([np.asarray(run[col][:self.n]) - np.asarray(clean[col][:self.n])
                           for run in noisy])
+            if compared and meas.mask[i, :self.n].any():
+                d = d[:, meas.mask[i, :self.n]]
             if name in ident.OFFSET_SIGNALS:
                 d = d - d.mean(axis=1, keepdims=True)
             loop = float(np.sqrt(np.mean(d ** 2)))
