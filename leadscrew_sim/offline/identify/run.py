@@ -288,33 +288,11 @@ def _loop_at_fit(plan, weights, missed):
     first fit. The loop's response to the sensors
     (:meth:`Problem.add_loop_noise`) is measured again at its values; if a
     signal's level grows by more than :data:`LOOP_GROWTH`, the recording is
-    fitted again from the start with those levels, and that fit replaces
-    ``missed`` if it explains the recording (else the levels are restored).
-    Returns (fit, None when the levels did not grow, else (the signals
-    whose level grew, whether the new fit explained the recording)).
+    fitted again from the start with those levels (:func:`_with_levels`).
     """
-    problem = plan.problem
-    if not problem.loop_noise:
-        return missed, None
-    meas = problem.measurements
-    kept = (dict(meas.sigma), dict(problem.noise), dict(problem.loop_noise),
-            list(problem.raised))
-    problem.add_loop_noise(dict(zip(missed[0].names, missed[0].values)))
-    grown = [n for n in meas.names if meas.sigma[n] > LOOP_GROWTH * weights[n]]
-    if not grown:
-        meas.sigma, problem.noise, problem.loop_noise, problem.raised = kept
-        return missed, None
-    problem.raised = []
-    again = _fit(plan)
-    again[0].nfev += missed[0].nfev
-    if again[3]:
-        meas.sigma, problem.noise, problem.loop_noise, problem.raised = kept
-        missed[0].nfev = again[0].nfev
-        return missed, (grown, False)
-    for n in meas.names:
-        sigma, how = problem.noise[n]
-        problem.noise[n] = (sigma, how + ', measured at the first fit' if n in grown else how)
-    return again, (grown, True)
+    return _with_levels(plan, missed, dict(zip(missed[0].names, missed[0].values)), False,
+                        lambda new, old: new > LOOP_GROWTH * old, weights,
+                        'measured at the first fit')
 
 
 #: Factor by which a signal's noise level over the steps compared must fall below the first
@@ -329,17 +307,28 @@ def _loop_on_compared(plan, weights, missed):
     Measure the drive loop's response over the steps compared; fit again where it fell.
 
     The last attempt, for a recording with steps left out
-    (:func:`...analysis.identify.steps.drop_slow`):
-    ``missed`` is the fit (as :func:`_fit` returns it) that no attempt made
-    explain the recording; ``weights`` the signals' noise levels of the
-    first fit. The loop's response at the start is measured again over the
-    steps the residuals compare (:meth:`Problem.add_loop_noise`); if a
-    signal's level falls by more than :data:`LOOP_FALL`, the recording is
-    fitted again from the start with those levels and judged against them
-    (a stricter bar), and that fit replaces ``missed`` if it explains the
-    recording (else the levels are restored). Returns (fit, None when no
-    level fell, else (the signals whose level fell, whether the new fit
-    explained the recording)).
+    (:func:`...analysis.identify.steps.drop_slow`): ``missed`` and
+    ``weights`` as :func:`_loop_at_fit`'s. The loop's response at the start
+    is measured again over the steps the residuals compare; if a signal's
+    level falls by more than :data:`LOOP_FALL`, the recording is fitted
+    again from the start with those levels and judged against them, a
+    stricter bar (:func:`_with_levels`).
+    """
+    return _with_levels(plan, missed, {}, True, lambda new, old: LOOP_FALL * new < old,
+                        weights, 'over the steps compared')
+
+
+def _with_levels(plan, missed, values, compared, changed, weights, note):
+    """
+    Fit again from the start with the loop's response measured anew, if a level changed.
+
+    The response is measured at the physical ``values`` (over the steps
+    compared when ``compared``); the signals whose new level ``changed(new,
+    weights[name])`` are those it changed. The new fit replaces ``missed``
+    if it explains the recording, and those signals' levels say ``note``;
+    else the levels are restored. Returns (fit, None when no level changed,
+    else (the signals whose level changed, whether the new fit explained the
+    recording)).
     """
     problem = plan.problem
     if not problem.loop_noise:
@@ -347,9 +336,9 @@ def _loop_on_compared(plan, weights, missed):
     meas = problem.measurements
     kept = (dict(meas.sigma), dict(problem.noise), dict(problem.loop_noise),
             list(problem.raised))
-    problem.add_loop_noise({}, compared=True)
-    fell = [n for n in meas.names if LOOP_FALL * meas.sigma[n] < weights[n]]
-    if not fell:
+    problem.add_loop_noise(values, compared=compared)
+    moved = [n for n in meas.names if changed(meas.sigma[n], weights[n])]
+    if not moved:
         meas.sigma, problem.noise, problem.loop_noise, problem.raised = kept
         return missed, None
     problem.raised = []
@@ -358,11 +347,11 @@ def _loop_on_compared(plan, weights, missed):
     if again[3]:
         meas.sigma, problem.noise, problem.loop_noise, problem.raised = kept
         missed[0].nfev = again[0].nfev
-        return missed, (fell, False)
+        return missed, (moved, False)
     for n in meas.names:
         sigma, how = problem.noise[n]
-        problem.noise[n] = (sigma, how + ', over the steps compared' if n in fell else how)
-    return again, (fell, True)
+        problem.noise[n] = (sigma, f'{how}, {note}' if n in moved else how)
+    return again, (moved, True)
 
 
 def _refit(plan, res, why):
