@@ -121,6 +121,8 @@ class Problem:
         self.progress, self.stage, self.misfit = None, 'fit', {}
         self.raised = []
         self.loop_noise = {}
+        # name -> the level the misfit bar uses where lower than the noise level (run.py)
+        self.judged = {}
         # the sensors the drive loop closed over: the recording's, else those the starting
         # set declares or the data show (a foreign recording)
         self.loop_sensors = {n: getattr(recorded, n) for n in ident.IDEAL_SENSORS}

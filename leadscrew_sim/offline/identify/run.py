@@ -378,7 +378,7 @@ def _misfit(problem, final):
     over the steps compared (``problem.judged``) where that is lower.
     """
     meas = problem.measurements
-    levels = {n: min(problem.noise[n][0], getattr(problem, 'judged', {}).get(n, math.inf))
+    levels = {n: min(problem.noise[n][0], problem.judged.get(n, math.inf))
               for n in meas.names}
     bad = [f'{name} {rms / levels[name]:.3g}' for name, rms in
            zip(meas.names, meas.rms(final)) if rms > MISFIT * levels[name]]
