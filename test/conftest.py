@@ -37,11 +37,12 @@ def _has_avx2_fma():
 
 
 # numpy's and scipy's bundled OpenBLAS pick their kernels by the CPU when they load
-# (SkylakeX on AVX-512 hosts, Haswell on AVX2 and AMD Zen hosts). The kernels differ in
-# the last bits of an SVD, and least_squares' steps in identify's fits follow them: the
-# fitted values of the identification tests move by more than their tolerances. The
-# tests pin the Haswell kernels (any AVX2 + FMA host runs them), before numpy loads;
-# CLI subprocesses inherit the setting.
+# (SkylakeX on AVX-512 hosts, Haswell on AVX2 and AMD Zen hosts), and the kernels differ
+# in the last bits of a product or an SVD. identify's fits take none of their sums from
+# OpenBLAS (test/cli/test_identify_kernels.py runs one under two kernels); the suite
+# still pins the Haswell kernels (any AVX2 + FMA host runs them), before numpy loads, so
+# that every other computation (eigenvalues, spectra) rounds alike on any host. CLI
+# subprocesses inherit the setting.
 if _has_avx2_fma():
     os.environ.setdefault('OPENBLAS_CORETYPE', 'Haswell')
 

@@ -166,10 +166,12 @@ CASES = {('tr12x3', 'torque'): {'backlash'}, ('tr12x3', 'velocity'): set(),
          ('anti_backlash', 'position'): set()}
 #: The parameters a case fixes so weakly that its verdict lies at the bar: through the
 #: position loop the speed ladder's Stribeck velocity, whose refits of synthetic recordings
-#: spread +-46 % (+-59 % counting one that stopped in another minimum). Either verdict is
-#: right; identified, its interval must say how weak (wider than the tolerance) and hold
-#: the truth.
-WEAK = {('tr12x3', 'position'): {'stribeck_velocity'}}
+#: spread +-46 % (+-59 % counting one that stopped in another minimum), and stick_slip's
+#: under torque pulses, whose refits of the recording from 30 % off stay there (+33.6 %,
+#: +-30.7 % or wider). Either verdict is right; identified, its interval must say how weak
+#: (wider than the tolerance) and hold the truth.
+WEAK = {('tr12x3', 'position'): {'stribeck_velocity'},
+        ('stick_slip', 'torque'): {'stribeck_velocity'}}
 
 
 @pytest.mark.parametrize('preset,mode', list(CASES))

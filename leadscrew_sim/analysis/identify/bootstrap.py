@@ -33,8 +33,9 @@ MIN_HALF_WIDTH = 0.01
 STALLED = 0.25
 #: Largest residual RMS / noise level of a refit that explained its synthetic recording (the
 #: bar identify holds the recording's own fit to). A refit above it stopped in another
-#: minimum: the search, not the noise, put it there, so its error is left out of the spread
-#: (the recording's own fit is only accepted below the bar too).
+#: minimum: the search, not the noise, put it there; it is made again from the synthetic
+#: recording's truth, and one still above is left out of the spread (the recording's own
+#: fit is only accepted below the bar too).
 LOST = 2.5
 #: Fewest refits that explained their synthetic recordings for a parameter's spread.
 MIN_KEPT = 2
@@ -63,8 +64,10 @@ def bootstrap(problem, res, names, start, coords, max_nfev, bounds):
     +- t_K s_b is about their starts' spread: said to be a lower bound. A
     refit that does not explain its synthetic recording (an RMS above
     :data:`LOST` noise levels) stopped in another minimum of a rough cost; it
-    is left out, K counts the others, and a parameter with fewer than
-    :data:`MIN_KEPT` of them is not identifiable: nothing bounds its error.
+    is made again from the fitted values (the synthetic recording's truth),
+    and if that does not explain it either it is left out: K counts the
+    others, and a parameter with fewer than :data:`MIN_KEPT` of them is not
+    identifiable, as nothing bounds its error.
     Returns the new FitResult.
 
     Parameters
@@ -254,7 +257,16 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
                 max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
             nfev += syn.nfev
             if np.max(np.asarray(syn.rms, dtype=float)) > LOST:
-                errors.append(np.full(len(coords), np.nan))
+                # the search from off the truth stopped in another minimum; from the
+                # values the recording was made with, the fit finds the minimum the
+                # noise moved there, whose offset is the estimator's error
+                syn = ident.fit(problem.residuals, ident.coordinates(
+                    names, ScrewParams.from_dict(fitted, base=start), bounds),
+                    max_nfev=max_nfev, rounds=1, scan=False, jac_steps=problem.jac_steps)
+                nfev += syn.nfev
+                lost = np.max(np.asarray(syn.rms, dtype=float)) > LOST
+                errors.append(np.full(len(coords), np.nan) if lost else
+                              np.array(syn.values) - np.array(res.values))
                 continue
             errors.append(np.array(syn.values) - np.array(res.values))
             starts.append([away[c.name] for c in coords])

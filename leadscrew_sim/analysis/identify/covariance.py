@@ -3,11 +3,14 @@ The covariance of a least-squares fit of serially correlated residuals (no ROS, 
 
 The sandwich B M B with B = (J^T J)^-1 (equilibrated, :func:`scaled_inverse`)
 and M the long-run covariance of the per-step scores (Bartlett weights,
-bandwidth by Andrews' AR(1) plug-in rule, :func:`sandwich`).
+bandwidth by Andrews' AR(1) plug-in rule, :func:`sandwich`), every product
+taken by :mod:`.linalg`, so no BLAS kernel changes an interval.
 """
 import math
 
 import numpy as np
+
+from . import linalg as la
 
 
 def scaled_inverse(a):
@@ -22,7 +25,7 @@ def scaled_inverse(a):
     d = np.sqrt(np.diag(a))
     zero = d == 0.0
     ds = np.where(zero, 1.0, d)
-    inv = np.linalg.pinv(a / np.outer(ds, ds), rcond=1e-12) / np.outer(ds, ds)
+    inv = la.pinv(a / np.outer(ds, ds), 1e-12) / np.outer(ds, ds)
     inv[zero, :] = 0.0
     inv[:, zero] = 0.0
     inv[zero, zero] = np.inf
@@ -35,10 +38,10 @@ def _bartlett_bandwidth(scores):
     num = den = 0.0
     for g in scores.T:
         a, b = g[:-1], g[1:]
-        ss = float(a @ a)
+        ss = la.dot(a, a)
         if ss == 0.0:
             continue
-        rho = min(0.97, max(-0.97, float(a @ b) / ss))
+        rho = min(0.97, max(-0.97, la.dot(a, b) / ss))
         var = float(np.mean((b - rho * a) ** 2))
         num += 4.0 * rho ** 2 * var ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
         den += var ** 2 / (1.0 - rho) ** 4
@@ -63,17 +66,17 @@ def sandwich(jac, r, shape):
     """
     p = jac.shape[1]
     scores = (jac.reshape(shape + (p,)) * r.reshape(shape)[:, :, None]).sum(axis=0)
-    bread = scaled_inverse(jac.T @ jac)
+    bread = scaled_inverse(la.gram(jac))
     lag = _bartlett_bandwidth(scores)
-    meat = scores.T @ scores
+    meat = la.gram(scores)
     for ell in range(1, lag + 1):
-        gam = scores[ell:].T @ scores[:-ell]
+        gam = la.gram(scores[ell:], scores[:-ell])
         meat += (1.0 - ell / (lag + 1.0)) * (gam + gam.T)
     n_used = int(np.count_nonzero(r)) or 1
     p_eff = min(p, n_used - 1)
     meat *= n_used / max(1, n_used - p_eff)      # small-sample factor, as s^2 divides by n - p
     zero = ~np.isfinite(np.diag(bread))
     b = np.where(np.isfinite(bread), bread, 0.0)
-    cov = b @ meat @ b
+    cov = la.mat_mat(la.mat_mat(b, meat), b)
     cov[zero, zero] = np.inf
     return cov, lag

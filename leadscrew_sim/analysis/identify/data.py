@@ -35,6 +35,7 @@ import math
 
 import numpy as np
 
+from . import linalg as la
 from .covariance import sandwich, scaled_inverse
 
 __all__ = ['Coordinate', 'interval_jacobian', 'judge', 'Measurements',
@@ -98,7 +99,7 @@ def interval_jacobian(fun, z, r0, steps, lo=None, hi=None):
                 cols.append((fun(zi) - r0) / (sign * h))
                 inside.append((lo is None or zi[i] >= lo[i]) and (hi is None or zi[i] <= hi[i]))
         kept = [c for c, ok in zip(cols, inside) if ok] or cols
-        jac[:, i] = min(kept, key=np.linalg.norm)
+        jac[:, i] = min(kept, key=la.norm)
     return jac
 
 
@@ -174,7 +175,7 @@ def judge(coords, z, jac, cov, r, lo, hi, level, dof, hints=None, exact=False):
         return [_degenerate(c.name, hints) or _exact(c, z[i], jac[:, i])
                 for i, c in enumerate(coords)]
     tq = t_quantile(level, dof)
-    jtj = jac.T @ jac
+    jtj = la.gram(jac)
     inv = scaled_inverse(jtj)
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     d = np.where((sd > 0) & np.isfinite(sd), sd, 1.0)
@@ -242,7 +243,7 @@ def _exact(c, z, col):
     """Return the Verdict on exact data: seen if +-REL_MAX moves the signals above the floor."""
     size = max(abs(c.to_value(z)), c.typical)
     dz = math.log1p(REL_MAX) if c.log else REL_MAX * size / c.scale
-    moved = float(np.linalg.norm(col)) * dz
+    moved = la.norm(col) * dz
     if moved > 1.0:
         return Verdict(c.name, False, 'exact data: no statistical interval; moving it by '
                        f'+-{100 * REL_MAX:g} % changes the re-simulated signals by '

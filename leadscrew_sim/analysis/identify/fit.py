@@ -5,7 +5,8 @@ The caller supplies ``residuals(values) -> array (n_signals, n_time)``: the
 re-simulation of the recorded commands with the physical values ``{name:
 value}``, less the measured signals, divided by each signal's noise level
 (:class:`.data.Measurements`). :func:`fit` minimises the sum of squares with
-``scipy.optimize.least_squares`` (method ``'trf'``, bounded) in scaled
+a bounded trust-region reflective method (:func:`.lsq.least_squares`,
+scipy's ``'trf'`` on arithmetic no BLAS kernel changes) in scaled
 coordinates (:class:`Coordinate`: z = v / s, or z = ln(v / s) for a parameter
 that spans decades), then estimates the covariance from the final Jacobian,
 95 % intervals (t distribution), the correlations, and a verdict per
@@ -27,6 +28,7 @@ import numpy as np
 
 from ...core.params import ScrewParams
 from . import data as V
+from . import linalg as la
 from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
                      SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements,
@@ -322,7 +324,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         name -> a sentence on why the data lacks what that parameter needs,
         appended to a verdict of no sensitivity.
     ftol, xtol : float
-        Tolerances of ``least_squares``.
+        Tolerances of the local fits.
     rounds : int
         Most fits.
     scan : bool
@@ -472,8 +474,8 @@ def _result(coords, active, z, jac, r, fun, held, run, hints, exact):
             for b, ib in enumerate(idx):
                 if ia is not None and ib is not None:
                     corr[a, b] = c_act[ia, ib]
-    sv = np.linalg.svd(jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300),
-                       compute_uv=False) if active else np.zeros(0)
+    sv = la.singular_values(jac / np.maximum(np.sqrt(np.sum(jac * jac, axis=0)), 1e-300)) \
+        if active else np.zeros(0)
     return FitResult(names=names, initial=[c.initial for c in coords], values=values,
                      lower=lower, upper=upper, std=std, correlation=corr,
                      verdicts=out_verdicts, rms=_rms(r, fun.shape), n_residuals=int(r.size),

@@ -9,18 +9,20 @@ a residual above twice the noise is scanned coordinate by coordinate
 parameter moved by a factor (:func:`spread`), and a log-scaled parameter
 far weaker than the others can be followed along its profile
 (:func:`profiled`). Every local fit of a search takes its bounds and
-``least_squares`` options from one :class:`SearchOptions`.
+options from one :class:`SearchOptions`.
 """
 import dataclasses
 import math
 
 import numpy as np
 
+from .lsq import least_squares
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SearchOptions:
     """
-    The bounds and ``least_squares`` options of the local fits of a bounded search.
+    The bounds and options of the local fits of a bounded search.
 
     Parameters
     ----------
@@ -29,7 +31,7 @@ class SearchOptions:
     diff_step : float
         Relative step of the finite-difference Jacobian in z.
     ftol, xtol : float
-        Tolerances of ``least_squares``.
+        Tolerances of the local fits (:func:`.lsq.least_squares`).
     max_nfev : int or None
         Most evaluations of a local fit (None: 50 per parameter).
     p : int
@@ -52,7 +54,7 @@ class SearchOptions:
 
 def local_fit(fun, z, opts):
     """
-    Return scipy's bounded local least-squares fit (``trf``, z unscaled) of ``fun`` from ``z``.
+    Return the bounded local least-squares fit (:func:`.lsq.least_squares`) of ``fun`` from ``z``.
 
     Parameters
     ----------
@@ -64,10 +66,8 @@ def local_fit(fun, z, opts):
         The bounds and options of the fit.
 
     """
-    from scipy.optimize import least_squares
-    return least_squares(fun, z, bounds=(opts.lo, opts.hi), method='trf', x_scale=1.0,
-                         diff_step=opts.diff_step, ftol=opts.ftol, xtol=opts.xtol, gtol=1e-10,
-                         max_nfev=opts.max_nfev or 50 * opts.p)
+    return least_squares(fun, z, opts.lo, opts.hi, opts.diff_step, ftol=opts.ftol,
+                         xtol=opts.xtol, gtol=1e-10, max_nfev=opts.max_nfev or 50 * opts.p)
 
 
 #: Most restarts of the whole run's stage, and the least relative cost gain that earns one.
@@ -87,7 +87,7 @@ def restart_fit(fun, res, opts):
     ----------
     fun : callable
         z -> the flattened weighted residuals.
-    res : scipy.optimize.OptimizeResult
+    res : OptimizeResult
         The fit to improve on.
     opts : SearchOptions
         The bounds and options of the local fits.
@@ -131,7 +131,7 @@ def scanned(fun, res, starts, coords, opts, restart):
     ----------
     fun : callable
         z -> the flattened weighted residuals.
-    res : scipy.optimize.OptimizeResult
+    res : OptimizeResult
         The fit to improve on.
     starts : list of numpy.ndarray
         The points the sweeps start from.
@@ -190,7 +190,7 @@ def profiled(fun, res, coords, opts):
     ----------
     fun : callable
         z -> the flattened weighted residuals.
-    res : scipy.optimize.OptimizeResult
+    res : OptimizeResult
         The fit to improve on.
     coords : list of Coordinate
         The fitted parameters.

@@ -41,6 +41,8 @@ import math
 import numpy as np
 
 from ...core.drive_modes import MODE_POSITION, MODE_TORQUE, MODE_VELOCITY
+from . import linalg as la
+from .lsq import least_squares
 
 #: Least duration [s] of a stretch of zero torque that may hold a rest, and the window
 #: [s] at its end in which the axis must rest.
@@ -168,19 +170,21 @@ def ringing(y, dt):
         residual of the fit [rad].
 
     """
-    from scipy.optimize import least_squares
     y = np.asarray(y, dtype=float)
     t = (np.arange(len(y)) - (len(y) - 1)) * dt
     c0 = float(np.mean(y))
     rms0 = float(np.sqrt(np.mean((y - c0) ** 2)))
     d = y - c0
     x = np.column_stack([d[1:-1], d[:-2]])
-    if rms0 == 0.0 or np.linalg.matrix_rank(x) < 2:
+    sv = la.singular_values(x) if len(x) >= 2 else np.zeros(1)
+    if rms0 == 0.0 or not sv[-1] > sv[0] * max(x.shape) * la.EPS:
         return c0, 0.0, 0.0, 0.0, 0.0, rms0
-    a1, a2 = np.linalg.lstsq(x, d[2:], rcond=None)[0]
-    roots = np.roots([1.0, -a1, -a2])
-    z = roots[np.argmax(roots.imag)]
-    if z.imag <= 0.0 or abs(z) <= 0.0:
+    a1, a2 = la.lstsq(x, d[2:])
+    disc = 0.25 * a1 * a1 + a2          # roots of z^2 - a1 z - a2: complex for an oscillation
+    if not disc < 0.0:
+        return c0, 0.0, 0.0, 0.0, 0.0, rms0
+    z = complex(0.5 * a1, math.sqrt(-disc))
+    if abs(z) <= 0.0:
         return c0, 0.0, 0.0, 0.0, 0.0, rms0
 
     def basis(p):
@@ -190,16 +194,16 @@ def ringing(y, dt):
 
     def resid(p):
         b = basis(p)
-        return b @ np.linalg.lstsq(b, y, rcond=None)[0] - y
+        return la.mat_vec(b, la.lstsq(b, y)) - y
 
     lo, hi = np.array([-0.1 / dt, 1e-3 / dt]), np.array([0.1 / dt, 0.999 * math.pi / dt])
     p0 = np.clip([math.log(abs(z)) / dt, math.atan2(z.imag, z.real) / dt], lo, hi)
     try:
-        p = least_squares(resid, p0, bounds=(lo, hi), x_scale=np.array([1.0, p0[1]]),
-                          xtol=1e-14, ftol=1e-14, gtol=1e-14).x
-        c, amp_a, amp_b = np.linalg.lstsq(basis(p), y, rcond=None)[0]
+        p = least_squares(resid, p0, lo, hi, math.sqrt(la.EPS), xtol=1e-14, ftol=1e-14,
+                          gtol=1e-14, x_scale=np.array([1.0, p0[1]])).x
+        c, amp_a, amp_b = la.lstsq(basis(p), y)
         rms = float(np.sqrt(np.mean(resid(p) ** 2)))
-    except (np.linalg.LinAlgError, ValueError):      # no oscillation to fit
+    except (ArithmeticError, ValueError):      # no oscillation to fit
         return c0, 0.0, 0.0, 0.0, 0.0, rms0
     if not rms < rms0:
         return c0, 0.0, 0.0, 0.0, 0.0, rms0
