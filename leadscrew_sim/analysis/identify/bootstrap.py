@@ -239,7 +239,8 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
     try:
         for j in range(BOOTSTRAP):
             sensors['sensor_seed'] = (problem.recorded.sensor_seed + 1 + j) % 2 ** 31
-            sensors.update(_dither(sensors, base, sensors['sensor_seed']))
+            sensors.update(_dither(sensors, base, sensors['sensor_seed'],
+                                   getattr(problem, 'foreign', False)))
             synthetic = problem.replay(dict(fitted, **sensors), plain=True)
             cols = {s: np.asarray(synthetic[c][:problem.n]) for s, c, _u in ident.SIGNALS}
             data = np.array([cols[s] for s in meas.names])
@@ -278,7 +279,7 @@ def _refit_errors(problem, res, names, start, coords, max_nfev, bounds, floor):
     return np.array(errors), stalled, nfev
 
 
-def _dither(sensors, base, seed):
+def _dither(sensors, base, seed, foreign=False):
     """
     Return the quantisers' biases of a synthetic recording: the recorded ones moved within a step.
 
@@ -289,16 +290,21 @@ def _dither(sensors, base, seed):
     (the homing's zero lies anywhere within a step): each synthetic
     recording moves the bias of a quantiser without noise by a uniform share
     of one step (seeded by ``seed``); the free offsets take the bias itself
-    up. A noisy quantiser's phase is already random with each seed, and its
-    bias stays (a position loop over it would move with the bias).
+    up. A noisy quantiser's phase is left where the recording's parameters
+    put it, unless the recording is ``foreign``: its biases are not known,
+    and synthetic recordings that all share one phase resemble one another
+    more than they resemble the recording (the reversals of
+    ``bench/bench_coverage.py``: 3.8e-3 to 4.9e-3 rad apart on the screw
+    angle with one phase, 5.1e-3 to 5.9e-3 with a phase each, against 6.6e-3
+    to 7.5e-3 from the recording).
     """
     rng = np.random.default_rng(seed)
     out = {}
     u_enc, u_scale = rng.uniform(0.0, 1.0, 2)
-    if base.get('encoder_counts') and not base.get('encoder_noise'):
+    if base.get('encoder_counts') and (foreign or not base.get('encoder_noise')):
         out['encoder_bias'] = base.get('encoder_bias', 0.0) + \
             u_enc * 2.0 * np.pi / base['encoder_counts']
-    if base.get('scale_resolution') and not base.get('scale_noise'):
+    if base.get('scale_resolution') and (foreign or not base.get('scale_noise')):
         out['scale_bias'] = base.get('scale_bias', 0.0) + u_scale * base['scale_resolution']
     return out
 
