@@ -100,6 +100,7 @@ class _Model:
         self.jac_h, self.g_h, self.diag_h = jac_h, g_h, diag_h
 
     def value(self, p):
+        """Return q(p)."""
         jp = la.mat_vec(self.jac_h, p)
         return 0.5 * la.dot(jp, jp) + la.dot(self.g_h, p) + 0.5 * la.dot(self.diag_h, p * p)
 
@@ -139,7 +140,8 @@ def _trust_step(s, v, uf, radius, alpha):
         p = -la.mat_vec(v, uf / s)
         if la.norm(p) <= radius:
             return p, 0.0
-        low = -phi(0.0)[0] / phi(0.0)[1]
+        f0, df0 = phi(0.0)
+        low = -f0 / df0
     else:
         low = 0.0
     high = la.norm(suf) / radius
