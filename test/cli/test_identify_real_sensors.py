@@ -17,6 +17,7 @@ import math
 import re
 import time
 
+from bag_factory import strip_records
 from helpers import cli_ok
 import pytest
 from test_identify import _breakaway, _write
@@ -216,23 +217,26 @@ def test_velocity_steps_from_rest(recordings, real):
 
 
 @pytest.mark.parametrize('real', (False, True), ids=('noise_free', 'real_sensors'))
-def test_torque_steps_from_rest(recordings, real):
+def test_torque_steps_from_rest(recordings, real, tmp_path):
     """
     Zero-order-hold torque steps from zero, both ways: the starts are breakaways.
 
     On the horizontal axis the thread rests in its gap (never stuck); each step
     throws the screw across it, and where the next step turns it around the
     thread slides slowly in contact, where the static friction acts. mu_s is
-    not held as "never breaks away", and is fitted within its tolerance. (With
-    the real sensors the fit stops in a local minimum 0.6 % off in mu_s, whose
-    interval, +-0.12 %, misses the truth: the intervals are not checked here;
-    ``bench/bench_coverage.py`` measures them.)
+    not held as "never breaks away", and is fitted within its tolerance, its
+    interval holding the truth. (mu_s and the Stribeck velocity trade off
+    along a narrow valley whose floor is rough; a fit that stalled on it 0.6 %
+    off in mu_s gave an interval of +-0.12 % that missed the truth.) The
+    recording is fitted as a user's would be: without its parameters record,
+    so without the seed of its noise.
     """
     from leadscrew_sim.cli.identify_report import report
-    rec = recordings('torque_steps', real)
+    rec = tmp_path / 'bare.mcap'
+    strip_records(recordings('torque_steps', real), rec)
     out, _wall = _identify(rec, *_sets(HORIZONTAL))
     assert 'never breaks away' not in out['res'].verdict('mu_s').reason
-    _check_recovered(out, intervals=not real)
+    _check_recovered(out)
     # the segments named hold the static friction: each lies in a step's motion, after
     # its start (0.3, 1.1, 1.9, 2.7 s) and before the next (times of the states: + 1 ms)
     static = out['problem'].static

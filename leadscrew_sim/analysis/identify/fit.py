@@ -29,7 +29,7 @@ import numpy as np
 from ...core.params import ScrewParams
 from . import data as V
 from . import linalg as la
-from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE,
+from .search import (local_fit, profiled, restart_fit, scanned, SCAN_ABOVE, valley_scan,
                      SearchOptions, spread)
 from .data import (Coordinate, IDEAL_SENSORS, Measurements,
                    noiseless_sensors, NULL_BIAS, OFFSET_SIGNALS, sandwich, scaled_inverse,
@@ -289,7 +289,7 @@ ANCHOR = 1.0
 
 def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfev=None,
         hints=None, ftol=1e-8, xtol=1e-8, rounds=2, scan=True, rescan=False, profile=False,
-        jac_steps=INTERVAL_JAC_STEPS, exact=False):
+        valley=False, jac_steps=INTERVAL_JAC_STEPS, exact=False):
     """
     Fit parameters so that ``residuals`` shrinks; return a :class:`FitResult`.
 
@@ -336,6 +336,9 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
     profile : bool
         Also scan each log-scaled parameter's profile after the whole run's
         stage (:func:`profiled`).
+    valley : bool
+        Also scan along the cost's principal axes after the whole run's stage
+        (:func:`valley_scan`): a narrow, rough valley that the local fits stall in.
     jac_steps : tuple of float
         Relative steps in z of the intervals' Jacobian (:func:`.data.interval_jacobian`).
     exact : bool
@@ -357,7 +360,7 @@ def fit(residuals, coords, fixed=None, *, horizons=None, diff_step=1e-3, max_nfe
         opts = _search_options(active, diff_step, ftol, xtol, max_nfev)
         first = _round == 0
         res, z = _stages(fun, active, z0, opts, horizons if first else None, scan and first,
-                         rescan, profile and first)
+                         rescan, (profile and first, valley and first))
         r, jac, verdicts, counted = _judged(fun, active, z, opts, jac_steps, hints, exact)
         nfev, message = nfev + counted, res.message
         if all(v.fitted for v in verdicts) or _round == rounds - 1:
@@ -377,14 +380,15 @@ def _search_options(coords, diff_step, ftol, xtol, max_nfev):
     return SearchOptions(lo, hi, diff_step, ftol, xtol, max_nfev, len(coords))
 
 
-def _stages(fun, coords, z0, opts, horizons, scan, rescan, profile):
+def _stages(fun, coords, z0, opts, horizons, scan, rescan, after):
     """
     Fit the ``horizons`` stages (None: none) and the whole run; return (result, its z).
 
     ``opts`` are those of the whole run's stage; the horizon stages fit the
     residuals pulled toward their start (:class:`_Anchored`) with a
     :data:`COARSE` step, the first of them also from the :func:`spread`
-    points. ``scan``, ``rescan`` and ``profile`` as :func:`fit`'s.
+    points. ``scan`` and ``rescan`` as :func:`fit`'s; ``after`` (profile, valley)
+    the searches of the whole run's stage, as :func:`fit`'s ``profile`` and ``valley``.
     """
     z = np.clip(z0, opts.lo, opts.hi)
     for stage, h in enumerate((horizons or []) + [None]):
@@ -403,8 +407,10 @@ def _stages(fun, coords, z0, opts, horizons, scan, rescan, profile):
         if scan and np.max(_rms(res.fun[:fun.size], fun.shape)) > SCAN_ABOVE:
             origins = [z, res.x] + ([z0] if rescan and stage > 0 else [])
             res = scanned(target, res, origins, coords, step, restart=h is None)
-        if h is None and profile:
+        if h is None and after[0]:
             res = profiled(fun, res, coords, opts)
+        if h is None and after[1]:
+            res = valley_scan(fun, res, opts)
         z = res.x
     return res, z
 

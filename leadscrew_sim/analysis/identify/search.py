@@ -8,7 +8,8 @@ a residual above twice the noise is scanned coordinate by coordinate
 (:func:`scanned`), the first stage also starts from each log-scaled
 parameter moved by a factor (:func:`spread`), and a log-scaled parameter
 far weaker than the others can be followed along its profile
-(:func:`profiled`). Every local fit of a search takes its bounds and
+(:func:`profiled`), and a narrow, rough valley is scanned along its own axes
+(:func:`valley_scan`). Every local fit of a search takes its bounds and
 options from one :class:`SearchOptions`.
 """
 import dataclasses
@@ -16,6 +17,7 @@ import math
 
 import numpy as np
 
+from . import linalg as la
 from .lsq import least_squares
 
 
@@ -227,6 +229,81 @@ def profiled(fun, res, coords, opts):
             if new.cost < best.cost:
                 best = new
     return best
+
+
+#: Half-widths of the valley scan's grids, in standard deviations of the local quadratic
+#: model along each axis, its points per grid (the centre, already known, left out), its
+#: most rounds, and the least fall of the sum of squares (noise units) that earns another.
+VALLEY_WIDTHS, VALLEY_POINTS, VALLEY_ROUNDS, VALLEY_GAIN = (30.0, 3.0, 0.3), 11, 4, 1.0
+#: Relative step of the valley scan's Jacobian in z: a wide step sees the trend of the
+#: valley's walls over the jumps of its floor.
+VALLEY_STEP = 1e-2
+
+
+def valley_scan(fun, res, opts):
+    """
+    Return the local fit from the best point of scans along the cost's principal axes.
+
+    Where two parameters trade off (a friction coefficient against the
+    Stribeck velocity, both read from the same slow slides) the cost is a
+    long curved valley, and where the motion has events (a breakaway, a flank
+    change, a stick) on the step grid its floor is rough: a change of a few
+    1e-4 in a coefficient moves an event by a step and the cost by more than
+    the floor's slope over it. A gradient step then stalls on the first
+    ridge of the floor, and a coordinate scan crosses the valley at an angle
+    and sees only its walls. This scan follows it: the Jacobian J at the
+    point, by central differences of :data:`VALLEY_STEP` (the walls' trend
+    over the jumps), gives the axes V and standard deviations 1 / s of the
+    local quadratic model (the thin SVD J = U diag(s) V^T); along each axis
+    in turn the point moves to the best of a grid of +-30, 3 and 0.3 of its
+    standard deviations. Rounds repeat from the new point (its own axes: the
+    valley bends) while one lowers the sum of squares by at least
+    :data:`VALLEY_GAIN` (noise units: less is no evidence), and the local fit
+    is repeated from the best point; its result replaces ``res`` if it is
+    better.
+
+    Parameters
+    ----------
+    fun : callable
+        z -> the flattened weighted residuals (in noise units).
+    res : OptimizeResult
+        The fit to improve on.
+    opts : SearchOptions
+        The bounds and options of the local fits.
+
+    """
+    lo, hi = opts.lo, opts.hi
+    z, ssq = np.array(res.x, dtype=float), 2.0 * float(res.cost)
+    start = ssq
+    for _round in range(VALLEY_ROUNDS):
+        jac = np.empty((res.fun.size, z.size))
+        for i in range(z.size):
+            h = VALLEY_STEP * max(1.0, abs(z[i]))
+            up, down = np.array(z), np.array(z)
+            up[i], down[i] = min(hi[i], z[i] + h), max(lo[i], z[i] - h)
+            if up[i] == down[i]:
+                jac[:, i] = 0.0
+                continue
+            jac[:, i] = (fun(up) - fun(down)) / (up[i] - down[i])
+        s, axes, _ = la.svd(jac)
+        spread = np.where(s > 0.0, 1.0 / np.maximum(s, 1e-300), 0.0)
+        before = ssq
+        for width in VALLEY_WIDTHS:
+            for k in range(z.size):
+                centre = z
+                for a in np.linspace(-width, width, VALLEY_POINTS):
+                    if a == 0.0 or spread[k] == 0.0:
+                        continue
+                    zt = np.clip(centre + a * spread[k] * axes[:, k], lo, hi)
+                    st = float(np.sum(fun(zt) ** 2))
+                    if st < ssq:
+                        z, ssq = zt, st
+        if before - ssq < VALLEY_GAIN:
+            break
+    if not ssq < start:
+        return res
+    new = local_fit(fun, z, opts)
+    return new if new.cost < res.cost else res
 
 
 #: Factor by which the first stage also starts each log-scaled parameter lower and higher.

@@ -179,7 +179,7 @@ def _fit(plan, rescan=False):
     why = _degeneracies(plan, problem.compared(initial), {})
     res = ident.fit(problem.residuals, plan.coords, horizons=horizons(problem), hints=why,
                     max_nfev=plan.max_nfev, profile=problem.anchoring is not None,
-                    rescan=rescan, jac_steps=problem.jac_steps, exact=problem.exact)
+                    valley=True, rescan=rescan, jac_steps=problem.jac_steps, exact=problem.exact)
     fitted = dict(zip(res.names, res.values))
     for _again in range(PREDICT_ROUNDS):    # the steps the rests determine at the fit
         if problem.anchoring is None or not problem.predict(fitted):
@@ -359,8 +359,8 @@ def _refit(plan, res, why):
     """Return the fit of the plan's problem again from the values of ``res`` (its nfev added)."""
     again = ScrewParams.from_dict(dict(zip(res.names, res.values)), base=plan.start)
     res2 = ident.fit(plan.problem.residuals, ident.coordinates(plan.names, again, plan.bounds),
-                     hints=why, max_nfev=plan.max_nfev, jac_steps=plan.problem.jac_steps,
-                     exact=plan.problem.exact)
+                     hints=why, max_nfev=plan.max_nfev, valley=True,
+                     jac_steps=plan.problem.jac_steps, exact=plan.problem.exact)
     res2.initial, res2.nfev = res.initial, res.nfev + res2.nfev
     return res2
 
