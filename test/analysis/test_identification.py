@@ -390,6 +390,46 @@ def test_a_held_parameter_widens_its_neighbours_interval(noise):
     assert f'{move:+.3g} %' in vd.reason, (move, vd.reason)
 
 
+def test_a_held_parameter_acting_through_a_parabola_widens_both_sides():
+    """
+    mu_s acts through K (mu_s - 0.19)^2: both ends of its range move mu_k the same way.
+
+    y = mu_k x1 + K (mu_s - 0.19)^2 x2 + noise (sigma 1e-3), truth mu_k 0.13,
+    mu_s 0.19; mu_s is held at its start, 0.2. The fit of mu_k with mu_s at
+    mu_s is the closed form mu_k(mu_s) = x1.(y - K (mu_s - 0.19)^2 x2) / x1.x1:
+    at 0.2 it lies K 1e-4 x1.x2 / x1.x1 (about 10 of its noise half-widths)
+    below the truth, and the refits at 0.1 and 0.3 move it lower still. An
+    interval widened only toward the moves would miss the truth above; the
+    one widened by the largest move on both sides holds it.
+    """
+    from leadscrew_sim.analysis.identify.conditional import conditional
+    t = np.linspace(0.0, 1.0, 2000)
+    x1 = np.sin(2 * np.pi * 3 * t) + 2.0
+    x2 = 0.2 * x1 + np.cos(2 * np.pi * 5 * t)
+    k, sigma, vertex = 10.0, 1e-3, 0.19
+    y = 0.13 * x1 + np.random.default_rng(4).normal(0.0, sigma, len(t))
+
+    def residuals(values, n=None):
+        model = values['mu_k'] * x1 + k * (values['mu_s'] - vertex) ** 2 * x2
+        return ((model - y) / sigma)[None, :n]
+
+    def closed(mu_s):
+        return float(x1 @ (y - k * (mu_s - vertex) ** 2 * x2) / (x1 @ x1))
+    start = load_preset('tr12x3')
+    coords = ident.coordinates(['mu_k', 'mu_s'], start)
+    res = ident.fit(residuals, coords, hints={'mu_s': 'held by the test'}, scan=False)
+    vd = res.verdict('mu_k')
+    assert res.value('mu_k') == pytest.approx(closed(0.2), rel=1e-6)
+    assert vd.identified and vd.upper < 0.13, vd         # the noise's interval misses it
+    assert closed(0.1) < closed(0.2) and closed(0.3) < closed(0.2)      # both ends move down
+    out, _notes = conditional(residuals, res, coords, start)
+    vd, v = out.verdict('mu_k'), out.value('mu_k')
+    assert vd.identified, vd
+    largest = closed(0.2) - min(closed(0.1), closed(0.3))
+    assert vd.lower <= v - largest + 1e-9 and vd.upper >= v + largest - 1e-9, vd
+    assert vd.lower <= 0.13 <= vd.upper, vd
+
+
 def test_a_start_from_the_backlash_gap_carries_the_static_friction():
     """
     Horizontal tr12x3, no load: the thread rests in its gap, never stuck (stick -1).
