@@ -238,6 +238,11 @@ VALLEY_WIDTHS, VALLEY_POINTS, VALLEY_ROUNDS, VALLEY_GAIN = (30.0, 3.0, 0.3), 11,
 #: Relative step of the valley scan's Jacobian in z: a wide step sees the trend of the
 #: valley's walls over the jumps of its floor.
 VALLEY_STEP = 1e-2
+#: Largest smallest singular value of that Jacobian, its columns scaled to unit norm, of a
+#: valley (parameters that trade off): two columns at an angle a give sqrt(1 - cos a), so
+#: 0.3 is a correlation of 0.91. Above it the parameters do not trade off and the scan
+#: is not made.
+VALLEY_COLLINEAR = 0.3
 
 
 def valley_scan(fun, res, opts):
@@ -254,7 +259,10 @@ def valley_scan(fun, res, opts):
     and sees only its walls. This scan follows it: the Jacobian J at the
     point, by central differences of :data:`VALLEY_STEP` (the walls' trend
     over the jumps), gives the axes V and standard deviations 1 / s of the
-    local quadratic model (the thin SVD J = U diag(s) V^T); along each axis
+    local quadratic model (the thin SVD J = U diag(s) V^T). Without a valley
+    (no two columns of J, scaled to unit norm, within :data:`VALLEY_COLLINEAR`
+    of collinear) the scan stops there: a fit of parameters that do not trade
+    off has no long floor to stall on. Along each axis
     in turn the point moves to the best of a grid of +-30, 3 and 0.3 of its
     standard deviations. Rounds repeat from the new point (its own axes: the
     valley bends) while one lowers the sum of squares by at least
@@ -285,6 +293,8 @@ def valley_scan(fun, res, opts):
                 jac[:, i] = 0.0
                 continue
             jac[:, i] = (fun(up) - fun(down)) / (up[i] - down[i])
+        if _round == 0 and not _collinear(jac):
+            return res
         s, axes, _ = la.svd(jac)
         spread = np.where(s > 0.0, 1.0 / np.maximum(s, 1e-300), 0.0)
         before = ssq
@@ -304,6 +314,16 @@ def valley_scan(fun, res, opts):
         return res
     new = local_fit(fun, z, opts)
     return new if new.cost < res.cost else res
+
+
+def _collinear(jac):
+    """Return whether the columns of ``jac`` trade off (:data:`VALLEY_COLLINEAR`)."""
+    if jac.shape[1] < 2:
+        return False
+    size = np.sqrt(np.sum(jac * jac, axis=0))
+    if not np.all(size > 0.0):
+        return True
+    return bool(la.singular_values(jac / size)[-1] < VALLEY_COLLINEAR)
 
 
 #: Factor by which the first stage also starts each log-scaled parameter lower and higher.
