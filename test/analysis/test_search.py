@@ -64,3 +64,22 @@ def test_valley_scan_keeps_a_minimum_it_cannot_improve():
     fun = _Rough()
     res = local_fit(fun, np.array([1.0, 1.0]), OPTS)
     assert valley_scan(fun, res, OPTS) is res
+
+
+def test_no_valley_no_scan():
+    """
+    Parameters that do not trade off: the scan costs its Jacobian's 2 p evaluations only.
+
+    The residuals 30 (x - 1) and 30 (y - 1) give orthogonal columns (smallest
+    singular value 1 after scaling, far above the valley's 0.3); the fit is
+    returned as it was.
+    """
+    calls = []
+
+    def fun(z):
+        calls.append(1)
+        return 30.0 * (np.asarray(z) - 1.0)
+    res = local_fit(fun, np.array([1.5, 0.5]), OPTS)
+    before = len(calls)
+    assert valley_scan(fun, res, OPTS) is res
+    assert len(calls) - before == 4

@@ -239,9 +239,9 @@ VALLEY_WIDTHS, VALLEY_POINTS, VALLEY_ROUNDS, VALLEY_GAIN = (30.0, 3.0, 0.3), 11,
 #: valley's walls over the jumps of its floor.
 VALLEY_STEP = 1e-2
 #: Largest smallest singular value of that Jacobian, its columns scaled to unit norm, of a
-#: valley (parameters that trade off): two columns at an angle a give sqrt(1 - cos a), so
-#: 0.3 is a correlation of 0.91. Above it the parameters do not trade off and the scan
-#: is not made.
+#: valley (parameters that trade off): of two columns at an angle a it is
+#: sqrt(1 - |cos a|), so 0.3 is a |cos a| of 0.91. Above it the parameters do not trade
+#: off and the scan is not made.
 VALLEY_COLLINEAR = 0.3
 
 
@@ -317,13 +317,17 @@ def valley_scan(fun, res, opts):
 
 
 def _collinear(jac):
-    """Return whether the columns of ``jac`` trade off (:data:`VALLEY_COLLINEAR`)."""
-    if jac.shape[1] < 2:
-        return False
+    """
+    Return whether the columns of ``jac`` trade off (:data:`VALLEY_COLLINEAR`).
+
+    A column of zeros (a parameter the signals do not see) is left out: it
+    has no valley to follow, and its verdict holds it.
+    """
     size = np.sqrt(np.sum(jac * jac, axis=0))
-    if not np.all(size > 0.0):
-        return True
-    return bool(la.singular_values(jac / size)[-1] < VALLEY_COLLINEAR)
+    seen = size > 0.0
+    if np.count_nonzero(seen) < 2:
+        return False
+    return bool(la.singular_values(jac[:, seen] / size[seen])[-1] < VALLEY_COLLINEAR)
 
 
 #: Factor by which the first stage also starts each log-scaled parameter lower and higher.
