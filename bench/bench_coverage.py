@@ -2,14 +2,17 @@
 Coverage of ``leadscrew_sim identify``'s 95 % intervals on recordings with real sensors.
 
 Run: .venv/bin/python bench/bench_coverage.py [--seeds 3] [--profiles sweep,breakaway,..]
+[--withheld]
 
 Each profile is recorded by ``simulate`` on tr12x3 with the truth of
 ``test/cli/test_identify_real_sensors.py`` (mu_s 0.235, mu_k 0.128, Stribeck
 velocity 1.15 mm/s; the fit starts at the preset's 0.2, 0.15, 1 mm/s) and its
 real sensors (a 16-bit encoder with half a count of noise, a 1 um scale with
 0.25 um of noise), with ``--seeds`` sensor seeds (7, 11, 15, ..): the
-``sweep``, ``breakaway`` and ``reversals`` excite profiles on the vertical
-axis and that test's zero-order-hold torque steps from rest on the
+``sweep`` (velocity commands), ``breakaway`` (torque ramps), ``reversals``
+(position targets) and ``commission`` (those three and a velocity chirp,
+one after the other, each on its own command topic) excite profiles on the
+vertical axis and that test's zero-order-hold torque steps from rest on the
 horizontal one. ``identify`` fits mu_s, mu_k and the Stribeck velocity; a
 row per recording gives each error, its 95 % half-width and whether the
 interval holds the truth ('-' not identified), and the wall time; the last
@@ -76,7 +79,7 @@ def main():
     """Print the coverage table."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--seeds', type=int, default=3, help='sensor seeds per profile (7, 11, ..)')
-    ap.add_argument('--profiles', default='sweep,breakaway,reversals,torque_steps')
+    ap.add_argument('--profiles', default='sweep,breakaway,reversals,torque_steps,commission')
     ap.add_argument('--withheld', action='store_true',
                     help='fit copies without the parameters record (no sensor seed or model)')
     a = ap.parse_args()
