@@ -174,7 +174,7 @@ WEAK = {('tr12x3', 'position'): {'stribeck_velocity'},
         ('stick_slip', 'torque'): {'stribeck_velocity'}}
 
 
-#: A case identify gets wrong today, expected to fail until it does not (strict): stick_slip's
+#: A case identify gets wrong, expected to fail until it does not (strict): stick_slip's
 #: position ladder ends in a wrong basin, mu_k +0.68 % with a 95 % interval of +-0.056 %
 #: and RMS 1.64, 1.19, 1.42 noise levels where the truth gives 0.10, 0.62, 0.75. The screw
 #: angle's level carries the drive loop's response measured at the start (5.9e-4 rad, ten

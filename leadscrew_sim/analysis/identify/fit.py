@@ -480,8 +480,7 @@ def _result(coords, active, z, jac, r, fun, held, run, hints, exact):
             for b, ib in enumerate(idx):
                 if ia is not None and ib is not None:
                     corr[a, b] = c_act[ia, ib]
-    sv = la.singular_values(jac / np.maximum(np.sqrt(np.sum(jac * jac, axis=0)), 1e-300)) \
-        if active else np.zeros(0)
+    sv = la.singular_values(la.unit_columns(jac)[0]) if active else np.zeros(0)
     return FitResult(names=names, initial=[c.initial for c in coords], values=values,
                      lower=lower, upper=upper, std=std, correlation=corr,
                      verdicts=out_verdicts, rms=_rms(r, fun.shape), n_residuals=int(r.size),

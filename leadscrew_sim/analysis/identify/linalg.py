@@ -42,6 +42,12 @@ def gram(a, b=None):
     return np.einsum('ki,kj->ij', a, a if b is None else b)
 
 
+def unit_columns(a):
+    """Return (``a`` with each column scaled to unit norm, a zero one left zero; the norms)."""
+    size = np.sqrt(np.sum(a * a, axis=0))
+    return a / np.maximum(size, 1e-300), size
+
+
 def mat_vec(a, x):
     """Return a x."""
     return np.einsum('ij,j->i', a, x)

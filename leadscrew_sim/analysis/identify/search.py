@@ -323,11 +323,11 @@ def _collinear(jac):
     A column of zeros (a parameter the signals do not see) is left out: it
     has no valley to follow, and its verdict holds it.
     """
-    size = np.sqrt(np.sum(jac * jac, axis=0))
+    unit, size = la.unit_columns(jac)
     seen = size > 0.0
     if np.count_nonzero(seen) < 2:
         return False
-    return bool(la.singular_values(jac[:, seen] / size[seen])[-1] < VALLEY_COLLINEAR)
+    return bool(la.singular_values(unit[:, seen])[-1] < VALLEY_COLLINEAR)
 
 
 #: Factor by which the first stage also starts each log-scaled parameter lower and higher.
