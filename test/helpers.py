@@ -61,7 +61,7 @@ class NodeProcess:
         self._log = open(log_path, 'wb')
         self.proc = subprocess.Popen(
             argv, stdout=self._log, stderr=subprocess.STDOUT,
-            env=dict(os.environ), start_new_session=True)
+            env=dict(os.environ, PYTHONFAULTHANDLER='1'), start_new_session=True)
 
     def output(self):
         """Return everything the process printed so far."""
@@ -74,8 +74,22 @@ class NodeProcess:
             self.proc.send_signal(sig)
 
     def wait(self, timeout):
-        """Wait for exit and return the exit code."""
-        return self.proc.wait(timeout=timeout)
+        """Wait for exit and return the exit code.
+
+        A process still running after timeout is aborted (SIGABRT: the fault handler prints
+        every thread's Python stack) and the test fails with its output, so a hang shows
+        where it hung.
+        """
+        try:
+            return self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.send_signal(signal.SIGABRT)
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            raise AssertionError(f'{self.proc.args} still ran after {timeout} s; its output, '
+                                 f'with the stacks at the abort:\n{self.output()}') from None
 
     def stop(self, sig=signal.SIGINT, timeout=15.0):
         """Stop cleanly with sig; kill the group if it does not exit."""

@@ -86,8 +86,25 @@ class LeadScrewSimNode(AxisAgeing, AxisServices, ClockLoops, CommandCallbacks, S
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        """Declare and validate the parameters, build the model and the ROS interfaces."""
+        """Declare and validate the parameters, build the model and the ROS interfaces.
+
+        A start-up that fails (bad parameters, a taken port) destroys the node before it
+        raises: its DDS participant is released while rclpy is still up, not by the garbage
+        collector at interpreter exit, where a live participant can hang the process.
+        """
         super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._start()
+        except BaseException:
+            if getattr(self, 'recorder', None) is not None:
+                self.recorder.stop()
+            if getattr(self, '_live', None) is not None:
+                self._live.stop()
+            self.destroy_node()
+            raise
+
+    def _start(self):
+        """The body of __init__: parameters, model, interfaces, ageing, recording."""
         self._running = True
         self.preset, self.params, self.settings = declare_parameters(self)
         s = self.settings
