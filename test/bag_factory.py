@@ -176,12 +176,13 @@ def mcap_doctor(path):
     return True, r.returncode == 0, r.stdout + r.stderr
 
 
-def strip_records(src, dst):
+def strip_records(src, dst, drop=()):
     """
     Copy the messages of MCAP ``src`` into ``dst``, without its metadata records.
 
     As a ``ros2 bag record`` of the node leaves it: no parameters record, so no
     sensor seed and no sensor model (the mcap library's writer, not ours).
+    The topics in ``drop`` are left out too (a bag that did not record them).
     """
     from mcap.reader import make_reader
     from mcap.writer import Writer
@@ -190,6 +191,8 @@ def strip_records(src, dst):
         w.start(profile='ros2', library='test')
         schemas, chans = {}, {}
         for schema, ch, msg in make_reader(fi).iter_messages(log_time_order=False):
+            if ch.topic in drop:
+                continue
             if schema.id not in schemas:
                 schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
                                                        schema.data)

@@ -5,6 +5,7 @@ The verb prints it (unless ``--quiet``) and ``--report`` writes it to a file.
 """
 import numpy as np
 
+from ..offline.foreign.forces import forces_text
 from ..offline.options import option_text
 from ..analysis.identify.fit import LEVEL
 from ..offline.identify.run import SHIFT
@@ -52,6 +53,9 @@ def report(path, out, name_of=None):
              f'fitted against: {", ".join(meas.names)} (re-simulated without sensor noise '
              'and quantisation; each position signal with a free offset)']
     if problem.foreign:
+        if problem.source.forces is not None:
+            lines.append(forces_text(problem.source.forces).rstrip('; ')
+                         + ', held on the twin\'s nut as the node holds it')
         delay = problem.source.delay
         lines.append(delay.line().replace('<<command_delay>> sets it', 'the mapping sets it')
                      if delay.how == 'set' else delay.line())

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import delay as D
 from .commands import Commands, CommandSet
+from .forces import find_forces, held_forces
 from .mapping import COMMAND_TYPES, DEFAULT_STEP_RATE, JOINT_STATE, KIND_ALIASES, Mapping
 from .segments import motion_segments
 from .states import COLUMNS, States
@@ -111,6 +112,8 @@ class ForeignReplay:
     ----------
     states : States
     commands : Commands
+    forces : Forces or None
+        The node's external force input, where recorded (:mod:`.forces`).
     t0 : int
         Grid start [ns] (first command time + delay).
     dt_ns : int
@@ -151,6 +154,7 @@ class ForeignReplay:
                                          command_index=index, command_joint=joint),
                      self.joints, rec.path)
             for t, (_t, kind, index, joint) in zip(topics, specs))
+        self.forces = find_forces(rec, self.state_topic)     # the node's external_force
         self._check_moves()
         first, last = self.commands.span()
         s0, s1 = int(self.states.stamps[0]), int(self.states.stamps[-1])
@@ -302,7 +306,10 @@ class ForeignReplay:
             rows = self.commands.rows(self.t0, self.dt_ns, self.n_steps, hold,
                                       int(round(self.delay.value * NS)), start)
             rows.flags.writeable = False        # shared by the replays of the key
-            self._inputs = self._rows[key] = ([], rows, np.zeros(self.n_steps))
+            forces = held_forces(self.forces, self.t0, self.dt_ns, self.n_steps,
+                                 int(round(self.delay.value * NS)))
+            forces.flags.writeable = False
+            self._inputs = self._rows[key] = ([], rows, forces)
         return self._inputs
 
     def with_params(self, params):

@@ -16,6 +16,7 @@ import dataclasses
 
 import numpy as np
 
+from .forces import forces_text
 from .replay import at_times, ForeignReplay, OFFSET_SIGNALS
 from .segments import motion_segments
 from .states import COLUMNS, UNITS
@@ -145,8 +146,8 @@ def report_lines(comp, label='', name_of=None):
              f'(intervals median {med * 1e3:.3f} ms, {lo * 1e3:.3f} .. {hi * 1e3:.3f} ms, '
              f'{st.gaps()} gaps), commands from {rep.command_topic} '
              f'({rep.commands.ctype}, {len(rep.commands.times)} taken, '
-             f'{rep.commands.skipped} non-finite skipped); {rep.n_steps} steps at '
-             f'{NS / rep.dt_ns:g} Hz',
+             f'{rep.commands.skipped} non-finite skipped); {forces_text(rep.forces)}'
+             f'{rep.n_steps} steps at {NS / rep.dt_ns:g} Hz',
              option_text(comp.delay.line(), name_of),
              f'{"signal":<16} {"unit":<6} {"rms diff":>12} {"max |diff|":>12} {"n":>8}']
     for name in comp.measured:
