@@ -5,7 +5,7 @@ The node takes an extra axial force on the nut [N] on its ``external_force``
 topic (std_msgs/Float64), held until the next message. A ``ros2 bag record`` of
 the node, or its MCAP with the parameters record lost, holds those messages.
 A twin that leaves them out drives a different axis: a test bench's load
-force of 20 N against the speed ladder of ``stick_slip`` left the twin at the
+force of 394 N against the speed ladder of ``stick_slip`` left the twin at the
 true parameters 786 noise levels off on the screw angle. :func:`find_forces`
 reads them, and :func:`held_forces` puts them on the replay's step grid, as
 the node's commands are.
