@@ -2,7 +2,7 @@
 Benchmark ``leadscrew_sim identify``: a 4-parameter fit of 20 s, 1 kHz recordings, and coverage.
 
 Run: .venv/bin/python bench/bench_identify.py [--seconds 20] [--seeds 6] [--profiles P,..]
-[--fit default]
+[--fit default] [--cases PRESET:MODE,.. [--case-seeds K] [--withheld]]
 
 Part 1 (speed): ``simulate`` records tr12x3 with its friction and backlash
 moved 20-30 % from the preset (the fit's start), a 17-bit encoder with half a
@@ -25,7 +25,8 @@ the share of the seeds whose 95 % interval holds the true value.
 Part 3 (``--profiles sweep,iso230,...``): ``simulate --excite`` recordings of tr12x3
 with the test's truth and sensors, fitted the same way; the errors and verdicts.
 Part 4 (``--cases anti_backlash:position,...``): the test's cases, any preset and mode, with
-``--case-seeds`` sensor seeds (the test's first), and how many intervals hold the truth.
+``--case-seeds`` sensor seeds (the test's first), and how many intervals hold the truth;
+with ``--withheld`` each recording is fitted as a copy without its parameters record.
 Part 5 (``--clean-sweep``): the issue's clean sweep (tr12x3, ideal sensors, mu_k 0.12,
 mu_s 0.17) fitted for mu_s, mu_k and the Stribeck velocity: wall time, re-simulations,
 errors. Part 6 (``--quantised tr12x3,stick_slip``): the ``sweep`` and ``breakaway``
@@ -51,6 +52,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / 'test'))
 sys.path.insert(0, str(HERE.parent / 'test' / 'cli'))
 import test_identify as T  # noqa: E402  (the test's cases)
+from bag_factory import strip_records  # noqa: E402, I100  (a copy without the record)
 import test_identify_defaults as D  # noqa: E402  (the default set's truth)
 
 FIT = 'mu_s,mu_k,stribeck_velocity,backlash'
@@ -91,10 +93,11 @@ def long_inputs(tmp, mode, seconds, p):
     return ['--velocity-csv', str(tmp / 'velocity.csv'), '--force-csv', str(tmp / 'force.csv')]
 
 
-def _args(rec, fit=FIT):
+def _args(rec, fit=FIT, extra=()):
     main = importlib.import_module('leadscrew_sim.cli.main')
     return main.build_parser().parse_args(['identify', str(rec), '--preset', 'tr12x3'] +
-                                          (['--fit', fit] if fit != 'default' else []))
+                                          (['--fit', fit] if fit != 'default' else []) +
+                                          list(extra))
 
 
 def speed(seconds, fit=FIT, modes=('velocity', 'torque')):
@@ -178,8 +181,13 @@ def profiles(names):
               f'{wall:.1f} s wall; {errs}')
 
 
-def cases(names, seeds=1):
-    """Print the errors and verdicts of the test's cases ``preset:mode``, for sensor seeds."""
+def cases(names, seeds=1, withheld=False):
+    """
+    Print the errors and verdicts of the test's cases ``preset:mode``, for sensor seeds.
+
+    ``withheld``: fit copies without the parameters record (no sensor seed or model;
+    the load force on its topic only), as a ``ros2 bag record`` of the node leaves them.
+    """
     for key in names:
         preset, mode = key.split(':')
         true, sets = T.truth(preset)
@@ -191,9 +199,13 @@ def cases(names, seeds=1):
                 tmp = Path(d)
                 opts, duration = T.profile(tmp, preset, mode)
                 rec = tmp / 'run.mcap'
+                over = T.NO_OVERSPEED if mode == 'torque' else ()     # as the test's
                 cli.main(['simulate', '--preset', preset, *map(str, opts), '--duration',
-                          str(duration), *sets, '-q', '-o', str(rec)])
-                args = _args(rec)
+                          str(duration), *sets, *over, '-q', '-o', str(rec)])
+                if withheld:
+                    strip_records(rec, tmp / 'bare.mcap')
+                    rec = tmp / 'bare.mcap'
+                args = _args(rec, extra=over if withheld else ())
                 args.preset = preset
                 t0 = time.perf_counter()
                 out = fit_recording(args)
@@ -204,8 +216,9 @@ def cases(names, seeds=1):
             errs = _errors(res, true, digits=4)
             anchoring = out['problem'].anchoring
             restarts = f'restarted at {len(anchoring.rests)} rests, ' if anchoring else ''
-            print(f'{key:>24} seed {T.SENSORS["sensor_seed"]}: {out["problem"].slow} steps '
-                  f'left out, {restarts}{wall:.1f} s wall; {errs}')
+            bare = ', withheld' if withheld else ''
+            print(f'{key:>24} seed {T.SENSORS["sensor_seed"]}{bare}: {out["problem"].slow} '
+                  f'steps left out, {restarts}{wall:.1f} s wall; {errs}', flush=True)
         T.SENSORS['sensor_seed'] = 7
         if seeds > 1:
             print(f'{key:>24}: 95 % intervals holding the truth in {seeds} seeds: ' +
@@ -276,6 +289,8 @@ def main():
     ap.add_argument('--fit', default=FIT, help='parameters of the speed part (default '
                     f'{FIT}; default: identify\'s default set, no --fit)')
     ap.add_argument('--modes', default='velocity,torque', help='drive modes of the speed part')
+    ap.add_argument('--withheld', action='store_true', help='fit the --cases as copies '
+                    'without the parameters record (no sensor seed or model)')
     ap.add_argument('--clean-sweep', action='store_true', help='fit the clean sweep')
     ap.add_argument('--quantised', default='', help='comma list of presets whose sweep and '
                     'breakaway profiles are fitted with a 16-bit encoder')
@@ -289,7 +304,7 @@ def main():
     if a.profiles:
         profiles([n for n in a.profiles.split(',') if n])
     if a.cases:
-        cases([n for n in a.cases.split(',') if n], a.case_seeds)
+        cases([n for n in a.cases.split(',') if n], a.case_seeds, a.withheld)
     if a.clean_sweep:
         clean_sweep()
     if a.quantised:

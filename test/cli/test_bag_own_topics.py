@@ -98,3 +98,7 @@ def test_the_nodes_external_force_acts_on_the_twin(tmp_path):
     assert 'external force' not in without.stdout
     assert rms_of(r.stdout, 'motor_torque') < 1e-3, r.stdout
     assert rms_of(without.stdout, 'motor_torque') > 0.05, without.stdout
+    # info names the force as the node's load input, never as a command topic to map
+    info = cli_ok('info', tmp_path / 'bare.mcap').stdout
+    assert 'external force /external_force' in info, info
+    assert not any('--command-topic /external_force' in ln for ln in info.splitlines()), info

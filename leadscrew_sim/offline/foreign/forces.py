@@ -35,18 +35,23 @@ class Forces:
     skipped: int
 
 
-def find_forces(rec, state_topic):
+def is_force_topic(topic):
+    """Return whether ``topic`` is named as the node's external force input."""
+    return topic == '/' + FORCE_TOPIC or topic.endswith('/' + FORCE_TOPIC)
+
+
+def find_forces(rec, state_topic, commands=()):
     """
     Return the :class:`Forces` of the node's external_force topic in ``rec`` (None: none).
 
-    The topic in the state topic's namespace is taken first. Values the node
+    The topic in the state topic's namespace is taken first; one the mapping
+    made a command topic (``commands``) is not a force. Values the node
     refuses (not finite, or beyond +-:data:`FORCE_MAX`) are skipped.
     """
     own = '/' + graph_name('joint_states')            # the node's: <ns>/axis/joint_states
     ns = state_topic[:-len(own)] if state_topic.endswith(own) else state_topic.rsplit('/', 1)[0]
     found = sorted((t for t, ty in rec.topic_types.items()
-                    if ty == FLOAT64 and (t == '/' + FORCE_TOPIC
-                                          or t.endswith('/' + FORCE_TOPIC))),
+                    if ty == FLOAT64 and t not in commands and is_force_topic(t)),
                    key=lambda t: (not t.startswith(ns + '/'), t))
     for topic in found:
         arrays = rec.topic_arrays([topic])[topic]

@@ -154,7 +154,7 @@ class ForeignReplay:
                                          command_index=index, command_joint=joint),
                      self.joints, rec.path)
             for t, (_t, kind, index, joint) in zip(topics, specs))
-        self.forces = find_forces(rec, self.state_topic)     # the node's external_force
+        self.forces = find_forces(rec, self.state_topic, topics)    # the node's load input
         self._check_moves()
         first, last = self.commands.span()
         s0, s1 = int(self.states.stamps[0]), int(self.states.stamps[-1])

@@ -10,6 +10,7 @@ named by its keyword, or as ``info`` names it: by its flag.
 """
 import numpy as np
 
+from .forces import is_force_topic
 from .mapping import (COMMAND_TYPES, FLOAT64, is_state_topic, JOINT_STATE, MULTI_ARRAY,
                       TRAJECTORY)
 from ..options import NS
@@ -41,12 +42,16 @@ def marked_lines(rec):
     (:func:`leadscrew_sim.offline.options.option_text` names it).
     """
     joint_topics = [t for t, ty in sorted(rec.topic_types.items()) if ty == JOINT_STATE]
+    # the node's load input on the nut acts on the twin as it is, never as a command
+    force_topics = [t for t, ty in sorted(rec.topic_types.items())
+                    if ty == FLOAT64 and is_force_topic(t)]
     # a state (the node's nut_position is a Float64 too) is never proposed as a command
     command_topics = [t for t, ty in sorted(rec.topic_types.items())
-                      if not is_state_topic(t) and (ty in COMMAND_TYPES and ty != JOINT_STATE
-                                                    or (ty == JOINT_STATE and 'command' in t))]
-    arrays = rec.topic_arrays(joint_topics + [t for t in command_topics
-                                              if t not in joint_topics])
+                      if not is_state_topic(t) and t not in force_topics
+                      and (ty in COMMAND_TYPES and ty != JOINT_STATE
+                           or (ty == JOINT_STATE and 'command' in t))]
+    arrays = rec.topic_arrays(joint_topics + force_topics + [t for t in command_topics
+                                                             if t not in joint_topics])
     lines, states = [], {}
     for topic in joint_topics:
         a = arrays[topic]
@@ -89,6 +94,11 @@ def marked_lines(rec):
             what = f'undecodable ({exc})'
         lines.append(f'command {topic}: {ty}, {len(a.log_times)} messages, {what}')
         commands.append((topic, ty, first))
+    for topic in force_topics:
+        if len(arrays[topic].log_times):
+            lines.append(f'external force {topic}: {FLOAT64}, {len(arrays[topic].log_times)} '
+                         'messages, the node\'s load on the nut [N] (the twin takes it, no '
+                         'flag needed)')
     if not states:
         lines.append('no sensor_msgs/JointState topic: nothing to map the states from')
         return lines
