@@ -20,11 +20,14 @@ from bag_factory import strip_records
 import pytest
 from test_identify import FIT, recording, truth
 
-#: The cases that fit with their seed and record withheld. stick_slip's position ladder
-#: is the one test_identify gets wrong with its seed (a wrong basin); tr12x3's and the
-#: split nut's position ladders and stick_slip's torque pulses are rejected, the fit
-#: not explaining them (doc/identification.md, "Recordings of the node's own topics").
-BARE = [('stick_slip', 'position'), ('anti_backlash', 'velocity'), ('stick_slip', 'velocity')]
+#: The cases whose bare fits hold every interval with a margin, on recordings that are the
+#: same on any machine. The position ladders are not: their profile is smoothed with
+#: numpy's convolve, whose dot product is OpenBLAS's, so their commands differ in the last
+#: bits with the kernel, and stick_slip's bare position ladder fits on one kernel's
+#: recording and misses on the other's; tr12x3's and the split nut's are rejected, and
+#: so are stick_slip's torque pulses (doc/identification.md, "The same recordings as a
+#: bag of the node").
+BARE = [('stick_slip', 'velocity'), ('anti_backlash', 'velocity')]
 
 
 @pytest.mark.parametrize('preset,mode', BARE)
