@@ -74,7 +74,8 @@ class NodeProcess:
             self.proc.send_signal(sig)
 
     def wait(self, timeout):
-        """Wait for exit and return the exit code.
+        """
+        Wait for exit and return the exit code.
 
         A process still running after timeout is aborted (SIGABRT: the fault handler prints
         every thread's Python stack) and the test fails with its output, so a hang shows

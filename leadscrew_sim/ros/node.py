@@ -86,7 +86,8 @@ class LeadScrewSimNode(AxisAgeing, AxisServices, ClockLoops, CommandCallbacks, S
     """The simulated lead screw axis (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        """Declare and validate the parameters, build the model and the ROS interfaces.
+        """
+        Declare and validate the parameters, build the model and the ROS interfaces.
 
         A start-up that fails (bad parameters, a taken port) destroys the node before it
         raises: its DDS participant is released while rclpy is still up, not by the garbage
@@ -104,7 +105,7 @@ class LeadScrewSimNode(AxisAgeing, AxisServices, ClockLoops, CommandCallbacks, S
             raise
 
     def _start(self):
-        """The body of __init__: parameters, model, interfaces, ageing, recording."""
+        """Build what __init__ promises: parameters, model, interfaces, ageing, recording."""
         self._running = True
         self.preset, self.params, self.settings = declare_parameters(self)
         s = self.settings
